@@ -1,0 +1,3 @@
+//! Acceleration structures over triangle meshes.
+
+pub mod kdtree;

@@ -1,0 +1,267 @@
+//! The film: per-sample radiance of the current wave ([`SampleBuffer`]), the finished image in
+//! linear radiance ([`Film`]), and output as 8-bit PNG or PPM.
+//!
+//! Accumulation is deterministic: every addition into a sample happens in schedule order (depth by
+//! depth, shade before shadow), and within one pass each sample is written by exactly one task.
+
+use std::path::Path;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::error::OutputError;
+use crate::queue::{MIN_CHUNK, SampleSlot};
+
+/// Linear radiance of every sample of one wave, indexed by [`SampleSlot`].
+#[derive(Clone, Debug, Default)]
+pub struct SampleBuffer {
+    /// Radiance per slot.
+    pub radiance: Vec<Vec3>,
+}
+
+impl SampleBuffer {
+    /// Resets to `n` black samples, keeping the allocation.
+    pub fn reset(&mut self, n: usize) {
+        self.radiance.clear();
+        self.radiance.resize(n, Vec3::ZERO);
+    }
+
+    /// `radiance[slot[i]] += value[i]` for every row `i` with `keep(i)`.
+    ///
+    /// `slot` must be non-decreasing (every queue is). Rows are split between tasks only where the
+    /// slot changes, so each sample is summed by one task in row order, bit-identically on any
+    /// number of threads.
+    pub fn add_sorted(
+        &mut self,
+        slot: &[SampleSlot],
+        value: &[Vec3],
+        keep: impl Fn(usize) -> bool + Sync,
+    ) {
+        debug_assert_eq!(slot.len(), value.len());
+        debug_assert!(
+            slot.windows(2).all(|w| w[0] <= w[1]),
+            "slots must be sorted"
+        );
+        let Some(first) = slot.first() else { return };
+        let base = first.0 as usize;
+        add_range(&mut self.radiance[base..], base, slot, value, 0, &keep);
+    }
+}
+
+/// Adds rows `offset..offset + slot.len()` into `out`, which starts at sample `base`.
+fn add_range(
+    out: &mut [Vec3],
+    base: usize,
+    slot: &[SampleSlot],
+    value: &[Vec3],
+    offset: usize,
+    keep: &(impl Fn(usize) -> bool + Sync),
+) {
+    if slot.len() <= 4 * MIN_CHUNK {
+        for (i, (s, v)) in slot.iter().zip(value).enumerate() {
+            if keep(offset + i) {
+                out[s.0 as usize - base] += *v;
+            }
+        }
+        return;
+    }
+    // Split at the middle, moved forward past rows that share the middle row's slot.
+    let mut mid = slot.len() / 2;
+    while mid < slot.len() && slot[mid] == slot[mid - 1] {
+        mid += 1;
+    }
+    if mid == slot.len() {
+        return add_range(out, base, &slot[..mid], &value[..mid], offset, keep);
+    }
+    let split = slot[mid].0 as usize;
+    let (lo, hi) = out.split_at_mut(split - base);
+    let (ls, hs) = slot.split_at(mid);
+    let (lv, hv) = value.split_at(mid);
+    rayon::join(
+        || add_range(lo, base, ls, lv, offset, keep),
+        || add_range(hi, split, hs, hv, offset + mid, keep),
+    );
+}
+
+/// A finished image in linear radiance, row-major, row 0 at the top.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Linear radiance per pixel (mean of its samples).
+    pub pixels: Vec<Vec3>,
+}
+
+impl Film {
+    /// A black film.
+    pub fn new(width: u32, height: u32) -> Film {
+        Film {
+            width,
+            height,
+            pixels: vec![Vec3::ZERO; width as usize * height as usize],
+        }
+    }
+
+    /// Averages `samples` consecutive slots of `buffer` into consecutive pixels starting at
+    /// `first_pixel` (the box filter), in a fixed order.
+    pub fn resolve_wave(&mut self, buffer: &SampleBuffer, first_pixel: usize, samples: usize) {
+        let n = buffer.radiance.len() / samples;
+        let inv = 1.0 / samples as f32;
+        self.pixels[first_pixel..first_pixel + n]
+            .par_iter_mut()
+            .with_min_len(MIN_CHUNK)
+            .zip(buffer.radiance.par_chunks_exact(samples))
+            .for_each(|(px, s)| *px = s.iter().fold(Vec3::ZERO, |a, &b| a + b) * inv);
+    }
+
+    /// 8-bit RGB: `round(255 · clamp(L, 0, 1)^(1/gamma))` per channel (SPEC §2).
+    pub fn to_rgb8(&self, gamma: f32) -> Vec<u8> {
+        let inv = 1.0 / gamma;
+        self.pixels
+            .par_iter()
+            .with_min_len(MIN_CHUNK)
+            .flat_map_iter(|p| p.to_array().map(|c| encode(c, inv)))
+            .collect()
+    }
+
+    /// Writes the image as `.png` or `.ppm` (by extension). The file appears complete or not at
+    /// all: it is written to a temporary name beside it and renamed.
+    pub fn save(&self, path: &Path, gamma: f32) -> Result<(), OutputError> {
+        save_rgb8(path, self.width, self.height, &self.to_rgb8(gamma))
+    }
+}
+
+/// Encodes one linear channel value to 8 bits; NaN becomes 0.
+#[inline]
+pub fn encode(c: f32, inv_gamma: f32) -> u8 {
+    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
+    (255.0 * c.powf(inv_gamma)).round() as u8
+}
+
+/// Writes 8-bit RGB pixels to `path` as PNG or binary PPM (P6), atomically: the bytes go to a
+/// temporary file beside it, which is renamed over `path` only when complete.
+pub fn save_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), OutputError> {
+    use image::ImageEncoder;
+    use image::codecs::png::PngEncoder;
+    use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
+
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let mut bytes = Vec::new();
+    let encoded = match ext.as_deref() {
+        Some("png") => PngEncoder::new(&mut bytes).write_image(
+            rgb,
+            width,
+            height,
+            image::ExtendedColorType::Rgb8,
+        ),
+        Some("ppm") => PnmEncoder::new(&mut bytes)
+            .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary))
+            .write_image(rgb, width, height, image::ExtendedColorType::Rgb8),
+        _ => {
+            return Err(OutputError::Format {
+                file: path.to_path_buf(),
+            });
+        }
+    };
+    encoded.map_err(|source| OutputError::Encode {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    let tmp = path.with_file_name(name);
+    let written = std::fs::write(&tmp, &bytes).and_then(|()| std::fs::rename(&tmp, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written.map_err(|source| OutputError::Io {
+        file: path.to_path_buf(),
+        source,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn add_sorted_sums_duplicates_and_respects_keep() {
+        let mut b = SampleBuffer::default();
+        b.reset(4);
+        let slots = [SampleSlot(1), SampleSlot(1), SampleSlot(3)];
+        let vals = [Vec3::ONE, Vec3::splat(2.0), Vec3::splat(5.0)];
+        b.add_sorted(&slots, &vals, |i| i != 2);
+        assert_eq!(
+            b.radiance,
+            vec![Vec3::ZERO, Vec3::splat(3.0), Vec3::ZERO, Vec3::ZERO]
+        );
+    }
+
+    #[test]
+    fn add_sorted_is_bit_identical_across_thread_counts() {
+        let n = 50_000;
+        let slots: Vec<SampleSlot> = (0..n).map(|i| SampleSlot(i / 3)).collect();
+        let vals: Vec<Vec3> = (0..n)
+            .map(|i| Vec3::splat(1.0 / (i as f32 + 1.0)))
+            .collect();
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut b = SampleBuffer::default();
+            b.reset(n as usize / 3 + 1);
+            pool.install(|| b.add_sorted(&slots, &vals, |_| true));
+            b.radiance
+        };
+        let one = run(1);
+        assert_eq!(one, run(3));
+        let serial: f32 = (0..3).map(|i| vals[i].x).fold(0.0, |a, b| a + b);
+        assert_eq!(one[0].x, serial);
+    }
+
+    #[test]
+    fn encode_applies_gamma_after_clamping() {
+        assert_eq!(encode(0.0, 1.0 / 2.2), 0);
+        assert_eq!(encode(1.0, 1.0 / 2.2), 255);
+        assert_eq!(encode(7.0, 1.0 / 2.2), 255);
+        assert_eq!(encode(-1.0, 1.0 / 2.2), 0);
+        assert_eq!(encode(f32::NAN, 1.0 / 2.2), 0);
+        assert_eq!(
+            encode(0.5, 1.0 / 2.2),
+            (255.0 * 0.5f32.powf(1.0 / 2.2)).round() as u8
+        );
+    }
+
+    #[test]
+    fn resolve_averages_each_pixels_samples() {
+        let mut b = SampleBuffer::default();
+        b.reset(4);
+        b.radiance = vec![Vec3::ONE, Vec3::ZERO, Vec3::splat(0.5), Vec3::splat(0.5)];
+        let mut f = Film::new(2, 2);
+        f.resolve_wave(&b, 2, 2);
+        assert_eq!(
+            f.pixels,
+            vec![Vec3::ZERO, Vec3::ZERO, Vec3::splat(0.5), Vec3::splat(0.5)]
+        );
+    }
+
+    #[test]
+    fn unknown_extension_is_refused_and_nothing_is_written() {
+        let dir = std::env::temp_dir().join(format!("wf-film-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("x.jpg");
+        let e = Film::new(1, 1).save(&p, 2.2).unwrap_err();
+        assert!(e.to_string().contains(".png or .ppm"));
+        assert!(!p.exists());
+        let p = dir.join("x.ppm");
+        Film::new(2, 1).save(&p, 2.2).unwrap();
+        assert!(std::fs::read(&p).unwrap().starts_with(b"P6"));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

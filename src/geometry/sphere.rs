@@ -1,0 +1,162 @@
+//! Ray/sphere intersection: the numerically stable form of Haines, Günther & Akenine-Möller
+//! (Ray Tracing Gems, ch. 7), and the textbook form kept for comparison.
+
+use glam::{DVec3, Vec3};
+
+/// Nearest root `t` of `|o + t·d − c| = r` with `0 < t < t_max`, or `None`.
+///
+/// Stable formulation: with `f = o − c`, `a = d·d`, `b = f·d`, the discriminant is computed as
+/// `a·(r² − |f − (b/a)·d|²)`, which keeps its precision for small spheres far away, and the
+/// roots as `q = −b − sign(b)·√Δ`, `t₀ = c/q`, `t₁ = q/a`, which avoids cancellation between
+/// `−b` and `√Δ`. The constant term `c = f·f − r²` cancels catastrophically when the origin is
+/// near the surface (a ray leaving a huge sphere); it is evaluated in f64, where the squares of
+/// f32 inputs are exact, so the near root keeps full f32 precision.
+#[inline]
+pub fn intersect_stable(o: Vec3, d: Vec3, center: Vec3, radius: f32, t_max: f32) -> Option<f32> {
+    let f = o - center;
+    let a = d.length_squared();
+    let b = f.dot(d);
+    let l = f - (b / a) * d;
+    let r2 = radius * radius;
+    let disc = a * (r2 - l.length_squared());
+    if disc.is_nan() || disc < 0.0 {
+        return None; // also rejects NaN
+    }
+    let fd = f.as_dvec3();
+    let c = (fd.dot(fd) - (radius as f64) * (radius as f64)) as f32;
+    let q = -b - disc.sqrt().copysign(b);
+    let (t0, t1) = (c / q, q / a);
+    let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+    pick(near, far, t_max)
+}
+
+/// The textbook quadratic `t = (−b ± √(b² − 4ac)) / 2a` in f32: loses the near root to
+/// cancellation and small far spheres to a rounded discriminant. Only for the error report.
+#[inline]
+pub fn intersect_naive(o: Vec3, d: Vec3, center: Vec3, radius: f32, t_max: f32) -> Option<f32> {
+    let f = o - center;
+    let a = d.dot(d);
+    let b = 2.0 * f.dot(d);
+    let c = f.dot(f) - radius * radius;
+    let disc = b * b - 4.0 * a * c;
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    pick((-b - s) / (2.0 * a), (-b + s) / (2.0 * a), t_max)
+}
+
+#[inline]
+fn pick(near: f32, far: f32, t_max: f32) -> Option<f32> {
+    if near > 0.0 && near < t_max {
+        Some(near)
+    } else if far > 0.0 && far < t_max {
+        Some(far)
+    } else {
+        None
+    }
+}
+
+/// The point on the sphere in the direction of `p` from the centre: re-projecting a hit point
+/// removes the error of `o + t·d` before the offset of a secondary ray is applied.
+#[inline]
+pub fn reproject(p: Vec3, center: Vec3, radius: f32) -> (Vec3, Vec3) {
+    let n = (p - center).normalize();
+    (center + radius * n, n)
+}
+
+/// f64 reference of the nearest root, for tests and the oracle.
+pub fn intersect_f64(o: DVec3, d: DVec3, center: DVec3, radius: f64, t_max: f64) -> Option<f64> {
+    let f = o - center;
+    let a = d.length_squared();
+    let b = f.dot(d);
+    let l = f - (b / a) * d;
+    let disc = a * (radius * radius - l.length_squared());
+    if disc.is_nan() || disc < 0.0 {
+        return None;
+    }
+    let c = f.dot(f) - radius * radius;
+    let q = -b - disc.sqrt().copysign(b);
+    let (t0, t1) = (c / q, q / a);
+    let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
+    if near > 0.0 && near < t_max {
+        Some(near)
+    } else if far > 0.0 && far < t_max {
+        Some(far)
+    } else {
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hits_the_near_side_from_outside() {
+        let t = intersect_stable(
+            Vec3::ZERO,
+            Vec3::NEG_Z,
+            Vec3::new(0.0, 0.0, -5.0),
+            1.0,
+            f32::INFINITY,
+        );
+        assert_eq!(t, Some(4.0));
+    }
+
+    #[test]
+    fn hits_the_far_side_from_inside() {
+        let t = intersect_stable(Vec3::ZERO, Vec3::X, Vec3::ZERO, 2.0, f32::INFINITY);
+        assert_eq!(t, Some(2.0));
+    }
+
+    #[test]
+    fn respects_t_max_and_misses() {
+        let c = Vec3::new(0.0, 0.0, -5.0);
+        assert_eq!(intersect_stable(Vec3::ZERO, Vec3::NEG_Z, c, 1.0, 4.0), None);
+        assert_eq!(
+            intersect_stable(Vec3::ZERO, Vec3::Y, c, 1.0, f32::INFINITY),
+            None
+        );
+        assert_eq!(
+            intersect_stable(Vec3::ZERO, Vec3::Z, c, 1.0, f32::INFINITY),
+            None
+        );
+    }
+
+    #[test]
+    fn nan_rays_miss() {
+        let c = Vec3::new(0.0, 0.0, -5.0);
+        assert_eq!(
+            intersect_stable(Vec3::NAN, Vec3::NEG_Z, c, 1.0, f32::INFINITY),
+            None
+        );
+        assert_eq!(
+            intersect_stable(Vec3::ZERO, Vec3::NAN, c, 1.0, f32::INFINITY),
+            None
+        );
+    }
+
+    #[test]
+    fn near_root_stays_accurate_just_above_a_huge_sphere() {
+        // Origin 1e-2 above a sphere of radius 1000, looking 60° away from straight down.
+        let c = Vec3::ZERO;
+        let o = Vec3::new(0.0, 1000.01, 0.0);
+        let d = Vec3::new(0.6f32.sin(), -0.6f32.cos(), 0.0);
+        let t = intersect_stable(o, d, c, 1000.0, f32::INFINITY).unwrap() as f64;
+        let r = intersect_f64(
+            o.as_dvec3(),
+            d.as_dvec3(),
+            c.as_dvec3(),
+            1000.0,
+            f64::INFINITY,
+        )
+        .unwrap();
+        assert!(((t - r) / r).abs() < 1e-5, "{t} vs {r}");
+        let naive = intersect_naive(o, d, c, 1000.0, f32::INFINITY).unwrap() as f64;
+        assert!(
+            ((naive - r) / r).abs() > 1e-5,
+            "the naive form should be visibly worse here"
+        );
+    }
+}

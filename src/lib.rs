@@ -1,0 +1,62 @@
+//! # wavefront
+//!
+//! A data-oriented wavefront ray tracer: Whitted shading, shadows and mirror reflections of
+//! analytic scenes and large triangle meshes (through a kD tree), every stage a parallel batch
+//! kernel over a structure-of-arrays ray queue.
+//!
+//! ## The stage graph
+//!
+//! ```text
+//!            ┌──────────┐  RayQueue[0]   ┌───────────┐  HitQueue   ┌───────┐  emitted   ┌─────────┐
+//!  camera ──►│ generate │──────────────►│ intersect │───────────►│ shade │───────────►│         │
+//!            └──────────┘               └───────────┘  (misses   └───────┘            │         │
+//!                                            ▲          leave)     │    │ ShadowQueue │ samples │─► film
+//!                                            │                     │    ▼             │         │
+//!                                            │                     │ ┌────────┐ lit   │         │
+//!                                            │  RayQueue[k+1]      │ │ shadow │──────►│         │
+//!                                            │  ┌─────────┐        │ └────────┘       └─────────┘
+//!                                            └──│ reflect │◄───────┘ (α > 0, k < D)
+//!                                               └─────────┘
+//! ```
+//!
+//! Rays are entities, SoA columns ([`queue`]) are components, stages ([`stages`]) are systems, and
+//! one schedule ([`schedule`]) orders them. Each scene gets only the stages it needs
+//! ([`schedule::Pipeline`]). Images are bit-identical for any thread count: every queue stays in
+//! sample order and every sample is accumulated in schedule order.
+
+pub mod accel;
+pub mod error;
+pub mod film;
+pub mod geometry;
+pub mod mesh;
+pub mod oracle;
+pub mod queue;
+pub mod sampling;
+pub mod scene;
+pub mod schedule;
+pub mod stats;
+pub mod world;
+
+#[path = "../stages/mod.rs"]
+pub mod stages;
+
+pub use film::Film;
+pub use scene::Scene;
+pub use schedule::{Pipeline, RenderOptions, render};
+pub use stats::Stats;
+pub use world::World;
+
+/// Loads a scene by built-in name or file path.
+pub fn load_scene(name_or_path: &str) -> Result<Scene, error::SceneError> {
+    if let Some(s) = scene::builtin::builtin(name_or_path) {
+        return Ok(s);
+    }
+    let path = std::path::Path::new(name_or_path);
+    if path.exists() {
+        scene::file::load(path)
+    } else {
+        Err(error::SceneError::UnknownScene {
+            name: name_or_path.to_owned(),
+        })
+    }
+}

@@ -1,0 +1,1 @@
+//! PLACEHOLDER: the f64 oracle.

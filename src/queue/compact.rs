@@ -1,0 +1,60 @@
+//! Order-preserving parallel compaction and gathers.
+//!
+//! Kernels with variable output write a per-row outcome in parallel; [`kept_rows`] then lists the
+//! rows to keep in their original order (rayon's indexed `collect` preserves order whatever the
+//! thread count), and [`gather`] copies a column's kept rows in parallel. Atomic appends would
+//! reorder rows between runs; this does not.
+
+use rayon::prelude::*;
+
+use super::MIN_CHUNK;
+
+/// Indices of the rows for which `keep` is true, ascending, into `out` (cleared first).
+pub fn kept_rows(n: usize, keep: impl Fn(usize) -> bool + Sync, out: &mut Vec<u32>) {
+    out.clear();
+    out.par_extend(
+        (0..n as u32)
+            .into_par_iter()
+            .with_min_len(MIN_CHUNK)
+            .filter(|&i| keep(i as usize)),
+    );
+}
+
+/// `out[k] = column[rows[k]]` for every k, in parallel (`out` is overwritten).
+pub fn gather<T: Copy + Send + Sync>(column: &[T], rows: &[u32], out: &mut Vec<T>) {
+    rows.par_iter()
+        .with_min_len(MIN_CHUNK)
+        .map(|&i| column[i as usize])
+        .collect_into_vec(out);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kept_rows_preserve_order_on_any_pool() {
+        let n = 100_000;
+        let keep = |i: usize| (i * 7919) % 13 < 5;
+        let expected: Vec<u32> = (0..n as u32).filter(|&i| keep(i as usize)).collect();
+        for threads in [1, 2, 4] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let mut out = vec![];
+            pool.install(|| kept_rows(n, keep, &mut out));
+            assert_eq!(out, expected, "{threads} threads");
+        }
+    }
+
+    #[test]
+    fn gather_copies_kept_rows() {
+        let col: Vec<u32> = (0..10).map(|i| i * 10).collect();
+        let mut out = vec![99; 3];
+        gather(&col, &[1, 4, 9], &mut out);
+        assert_eq!(out, vec![10, 40, 90]);
+        gather(&col, &[], &mut out);
+        assert!(out.is_empty());
+    }
+}

@@ -1,0 +1,207 @@
+//! The built-in reference scenes of SPEC §3 and §5: `spheres`, `sibenik`, `sibenik-shadows`.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+
+use super::{
+    Camera, ImageSettings, Material, MeshRef, Plane, PointLight, RenderMode, RenderSettings,
+    Robustness, Scene, Sphere, TreeSource,
+};
+use crate::error::SceneError;
+
+/// Names accepted by [`builtin`].
+pub const NAMES: [&str; 3] = ["spheres", "sibenik", "sibenik-shadows"];
+
+/// Environment variable that overrides where the Sibenik mesh is looked for.
+pub const SIBENIK_ENV: &str = "WAVEFRONT_SIBENIK";
+
+/// The mesh path relative to the project root (SPEC §5).
+pub const SIBENIK_RELATIVE: &str = "../shared/data/sibenik/sibenik.obj";
+
+/// The built-in scene called `name`, or `None` when there is no such built-in.
+///
+/// The Sibenik scenes refer to [`sibenik_mesh_path`]; whether the file exists is checked when the
+/// scene's geometry is loaded, so `plan` works without it.
+pub fn builtin(name: &str) -> Option<Scene> {
+    match name {
+        "spheres" => Some(spheres()),
+        "sibenik" => Some(sibenik(false)),
+        "sibenik-shadows" => Some(sibenik(true)),
+        _ => None,
+    }
+}
+
+fn material(name: &str, ka: Vec3, kd: Vec3, ks: Vec3, p: f32, alpha: f32) -> Material {
+    Material {
+        name: name.to_owned(),
+        ka,
+        kd,
+        ks,
+        p,
+        alpha,
+    }
+}
+
+fn image_512() -> ImageSettings {
+    ImageSettings {
+        width: 512,
+        height: 512,
+        samples: 1,
+        gamma: 2.2,
+        seed: 0,
+    }
+}
+
+/// Scene A (SPEC §3): three spheres over a mirror plane, shadows on, depth 2, one sample.
+pub fn spheres() -> Scene {
+    let v = Vec3::new;
+    Scene {
+        name: "spheres".into(),
+        image: image_512(),
+        camera: Camera {
+            eye: Vec3::ZERO,
+            u: Vec3::X,
+            v: Vec3::Y,
+            w: Vec3::Z,
+            l: -0.1,
+            r: 0.1,
+            b: -0.1,
+            t: 0.1,
+            d: 0.1,
+        },
+        render: RenderSettings {
+            max_depth: 2,
+            shadows: true,
+            ambient: Vec3::ONE,
+            mode: RenderMode::Shaded,
+            robustness: Robustness::default(),
+        },
+        lights: vec![PointLight {
+            position: v(-4.0, 4.0, -3.0),
+            intensity: Vec3::ONE,
+        }],
+        materials: vec![
+            material("floor", Vec3::splat(0.2), Vec3::ONE, Vec3::ZERO, 0.0, 0.5),
+            material(
+                "red",
+                v(0.2, 0.0, 0.0),
+                v(1.0, 0.0, 0.0),
+                Vec3::ZERO,
+                0.0,
+                0.0,
+            ),
+            material(
+                "green",
+                v(0.0, 0.2, 0.0),
+                v(0.0, 0.5, 0.0),
+                Vec3::splat(0.5),
+                32.0,
+                0.0,
+            ),
+            material(
+                "blue",
+                v(0.0, 0.0, 0.2),
+                v(0.0, 0.0, 1.0),
+                Vec3::ZERO,
+                0.0,
+                0.8,
+            ),
+        ],
+        spheres: vec![
+            Sphere {
+                center: v(-4.0, 0.0, -7.0),
+                radius: 1.0,
+                material: 1,
+            },
+            Sphere {
+                center: v(0.0, 0.0, -7.0),
+                radius: 2.0,
+                material: 2,
+            },
+            Sphere {
+                center: v(4.0, 0.0, -7.0),
+                radius: 1.0,
+                material: 3,
+            },
+        ],
+        planes: vec![Plane {
+            point: v(0.0, -2.0, 0.0),
+            normal: Vec3::Y,
+            material: 0,
+        }],
+        meshes: vec![],
+    }
+}
+
+/// Scene B (SPEC §5): the Sibenik cathedral lit from the origin, with or without shadow rays.
+pub fn sibenik(shadows: bool) -> Scene {
+    Scene {
+        name: if shadows {
+            "sibenik-shadows"
+        } else {
+            "sibenik"
+        }
+        .into(),
+        image: image_512(),
+        camera: Camera {
+            eye: Vec3::new(0.0, -10.0, 0.0),
+            u: Vec3::Z,
+            v: Vec3::Y,
+            w: Vec3::NEG_X,
+            l: -0.1,
+            r: 0.1,
+            b: -0.1,
+            t: 0.1,
+            d: 0.1,
+        },
+        render: RenderSettings {
+            max_depth: 0,
+            shadows,
+            ambient: Vec3::ONE,
+            mode: RenderMode::Shaded,
+            robustness: Robustness::default(),
+        },
+        lights: vec![PointLight {
+            position: Vec3::ZERO,
+            intensity: Vec3::ONE,
+        }],
+        materials: vec![material(
+            "white",
+            Vec3::ZERO,
+            Vec3::ONE,
+            Vec3::ZERO,
+            0.0,
+            0.0,
+        )],
+        spheres: vec![],
+        planes: vec![],
+        meshes: vec![MeshRef {
+            path: sibenik_mesh_path(),
+            material: 0,
+            kdtree: TreeSource::Sah,
+        }],
+    }
+}
+
+/// Where the built-in Sibenik scenes look for the mesh: `$WAVEFRONT_SIBENIK` if set, else
+/// `../shared/data/sibenik/sibenik.obj` relative to the working directory if it exists there,
+/// else the same path relative to this crate's source directory.
+pub fn sibenik_mesh_path() -> PathBuf {
+    if let Some(p) = std::env::var_os(SIBENIK_ENV) {
+        return PathBuf::from(p);
+    }
+    let cwd = PathBuf::from(SIBENIK_RELATIVE);
+    if cwd.exists() {
+        return cwd;
+    }
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join(SIBENIK_RELATIVE);
+    if manifest.exists() { manifest } else { cwd }
+}
+
+/// The error for a mesh file that is not there, saying where to put it.
+pub fn missing_mesh(path: &Path) -> SceneError {
+    SceneError::MissingMesh {
+        path: path.to_path_buf(),
+    }
+}

@@ -1,0 +1,626 @@
+//! Scene files (SPEC §8): TOML in, a validated [`Scene`] out.
+//!
+//! Every error names the file, the 1-based line and the key. Unknown keys are errors, numbers must
+//! be finite and fit an `f32`, directions must be non-zero, radii positive, materials defined.
+//! Relative paths are resolved against the scene file's directory.
+
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use serde::Deserialize;
+use toml::Spanned;
+
+use super::{
+    Camera, ImageSettings, Material, MeshRef, OffsetMethod, Plane, PointLight, RenderMode,
+    RenderSettings, Robustness, Scene, Sphere, SphereTest, TreeSource, TriangleTest,
+};
+use crate::error::SceneError;
+
+/// Largest accepted image side, samples per pixel and depth.
+pub const MAX_IMAGE_SIDE: u32 = 1 << 15;
+/// Largest accepted samples per pixel.
+pub const MAX_SAMPLES: u32 = 1 << 16;
+/// Largest accepted reflection depth.
+pub const MAX_DEPTH: u32 = 64;
+
+type V3 = Spanned<[f64; 3]>;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawScene {
+    image: Option<RawImage>,
+    camera: RawCamera,
+    render: Option<RawRender>,
+    #[serde(default)]
+    light: Vec<RawLight>,
+    #[serde(default)]
+    material: BTreeMap<String, Spanned<RawMaterial>>,
+    #[serde(default)]
+    plane: Vec<RawPlane>,
+    #[serde(default)]
+    sphere: Vec<RawSphere>,
+    #[serde(default)]
+    mesh: Vec<RawMesh>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawImage {
+    width: Option<Spanned<i64>>,
+    height: Option<Spanned<i64>>,
+    samples: Option<Spanned<i64>>,
+    gamma: Option<Spanned<f64>>,
+    seed: Option<Spanned<i64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawWindow {
+    l: Spanned<f64>,
+    r: Spanned<f64>,
+    b: Spanned<f64>,
+    t: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawCamera {
+    eye: V3,
+    u: V3,
+    v: V3,
+    w: V3,
+    window: Spanned<RawWindow>,
+    distance: Spanned<f64>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawRender {
+    max_depth: Option<Spanned<i64>>,
+    shadows: Option<bool>,
+    ambient: Option<V3>,
+    mode: Option<Spanned<String>>,
+    offset: Option<Spanned<String>>,
+    sphere_test: Option<Spanned<String>>,
+    triangle_test: Option<Spanned<String>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawLight {
+    position: V3,
+    intensity: Option<V3>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMaterial {
+    ka: Option<V3>,
+    kd: Option<V3>,
+    ks: Option<V3>,
+    p: Option<Spanned<f64>>,
+    alpha: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawPlane {
+    point: V3,
+    normal: V3,
+    material: Spanned<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawSphere {
+    center: V3,
+    radius: Spanned<f64>,
+    material: Spanned<String>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawMesh {
+    path: Spanned<String>,
+    material: Spanned<String>,
+    kdtree: Option<Spanned<String>>,
+}
+
+/// Reads and validates the scene file at `path`.
+pub fn load(path: &Path) -> Result<Scene, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
+        file: path.to_path_buf(),
+        source,
+    })?;
+    parse(&text, path)
+}
+
+/// Parses scene text; `path` names the file in errors and anchors relative paths.
+pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+    let cx = Cx { text, path };
+    let raw: RawScene = toml::from_str(text).map_err(|e| cx.toml_error(&e))?;
+    cx.scene(raw)
+}
+
+/// Error context: the source text and its path.
+struct Cx<'a> {
+    text: &'a str,
+    path: &'a Path,
+}
+
+impl Cx<'_> {
+    fn line(&self, span: Range<usize>) -> usize {
+        let end = span.start.min(self.text.len());
+        1 + self.text.as_bytes()[..end]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count()
+    }
+
+    fn err(
+        &self,
+        span: Range<usize>,
+        key: impl Into<String>,
+        message: impl Into<String>,
+    ) -> SceneError {
+        SceneError::Invalid {
+            file: self.path.to_path_buf(),
+            line: self.line(span),
+            key: key.into(),
+            message: message.into(),
+        }
+    }
+
+    fn toml_error(&self, e: &toml::de::Error) -> SceneError {
+        let span = e.span().unwrap_or(0..0);
+        // The key is the start of the offending line up to `=`, or the table header.
+        let line_text = self.text[..span.start.min(self.text.len())]
+            .rsplit('\n')
+            .next()
+            .unwrap_or("")
+            .to_owned()
+            + self.text[span.start.min(self.text.len())..]
+                .split('\n')
+                .next()
+                .unwrap_or("");
+        let key = line_text
+            .split('=')
+            .next()
+            .unwrap_or("")
+            .trim()
+            .trim_matches(|c| c == '[' || c == ']')
+            .to_owned();
+        let key = if key.is_empty() {
+            "(document)".into()
+        } else {
+            key
+        };
+        self.err(span, key, e.message().trim().to_owned())
+    }
+
+    fn float(&self, v: &Spanned<f64>, key: &str) -> Result<f32, SceneError> {
+        let x = *v.get_ref();
+        if !x.is_finite() {
+            return Err(self.err(v.span(), key, format!("{x} is not a finite number")));
+        }
+        if x.abs() > f32::MAX as f64 {
+            return Err(self.err(v.span(), key, format!("{x} does not fit a 32-bit float")));
+        }
+        Ok(x as f32)
+    }
+
+    fn vec3(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
+        let a = v.get_ref();
+        let mut out = [0.0f32; 3];
+        for (o, &x) in out.iter_mut().zip(a) {
+            if !x.is_finite() {
+                return Err(self.err(v.span(), key, format!("{x} is not a finite number")));
+            }
+            if x.abs() > f32::MAX as f64 {
+                return Err(self.err(v.span(), key, format!("{x} does not fit a 32-bit float")));
+            }
+            *o = x as f32;
+        }
+        Ok(Vec3::from(out))
+    }
+
+    fn direction(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
+        let d = self.vec3(v, key)?;
+        if d == Vec3::ZERO || !d.length_squared().is_finite() {
+            return Err(self.err(
+                v.span(),
+                key,
+                "must be a non-zero vector of moderate length",
+            ));
+        }
+        Ok(d)
+    }
+
+    fn colour(&self, v: Option<&V3>, key: &str, default: Vec3) -> Result<Vec3, SceneError> {
+        let Some(v) = v else { return Ok(default) };
+        let c = self.vec3(v, key)?;
+        if c.min_element() < 0.0 {
+            return Err(self.err(v.span(), key, "components must be ≥ 0"));
+        }
+        Ok(c)
+    }
+
+    fn int(&self, v: &Spanned<i64>, key: &str, lo: i64, hi: i64) -> Result<u32, SceneError> {
+        let x = *v.get_ref();
+        if x < lo || x > hi {
+            return Err(self.err(v.span(), key, format!("{x} is out of range {lo}..={hi}")));
+        }
+        Ok(x as u32)
+    }
+
+    fn choice<T: Copy>(
+        &self,
+        v: &Spanned<String>,
+        key: &str,
+        options: &[(&str, T)],
+    ) -> Result<T, SceneError> {
+        options
+            .iter()
+            .find(|(name, _)| name == v.get_ref())
+            .map(|&(_, t)| t)
+            .ok_or_else(|| {
+                let names: Vec<_> = options.iter().map(|(n, _)| format!("{n:?}")).collect();
+                self.err(
+                    v.span(),
+                    key,
+                    format!(
+                        "unknown value {:?}; expected one of {}",
+                        v.get_ref(),
+                        names.join(", ")
+                    ),
+                )
+            })
+    }
+
+    fn relative(&self, p: &str) -> PathBuf {
+        let p = Path::new(p);
+        if p.is_absolute() {
+            p.to_path_buf()
+        } else {
+            self.path.parent().unwrap_or(Path::new("")).join(p)
+        }
+    }
+
+    fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
+        let image = self.image(raw.image)?;
+        let camera = self.camera(&raw.camera)?;
+        let render = self.render(raw.render)?;
+
+        let mut lights = Vec::with_capacity(raw.light.len());
+        for (i, l) in raw.light.iter().enumerate() {
+            lights.push(PointLight {
+                position: self.vec3(&l.position, &format!("light[{i}].position"))?,
+                intensity: self.colour(
+                    l.intensity.as_ref(),
+                    &format!("light[{i}].intensity"),
+                    Vec3::ONE,
+                )?,
+            });
+        }
+
+        // Materials in declaration order, so indices follow the file.
+        let mut declared: Vec<_> = raw.material.iter().collect();
+        declared.sort_by_key(|(_, m)| m.span().start);
+        let mut materials = Vec::with_capacity(declared.len());
+        for (name, m) in declared {
+            let key = |k: &str| format!("material.{name}.{k}");
+            let mr = m.get_ref();
+            let p = match &mr.p {
+                Some(p) => {
+                    let x = self.float(p, &key("p"))?;
+                    if x < 0.0 {
+                        return Err(self.err(p.span(), key("p"), "must be ≥ 0"));
+                    }
+                    x
+                }
+                None => 0.0,
+            };
+            let alpha = match &mr.alpha {
+                Some(a) => {
+                    let x = self.float(a, &key("alpha"))?;
+                    if !(0.0..=1.0).contains(&x) {
+                        return Err(self.err(a.span(), key("alpha"), "must be in [0, 1]"));
+                    }
+                    x
+                }
+                None => 0.0,
+            };
+            materials.push(Material {
+                name: name.clone(),
+                ka: self.colour(mr.ka.as_ref(), &key("ka"), Vec3::ZERO)?,
+                kd: self.colour(mr.kd.as_ref(), &key("kd"), Vec3::ZERO)?,
+                ks: self.colour(mr.ks.as_ref(), &key("ks"), Vec3::ZERO)?,
+                p,
+                alpha,
+            });
+        }
+        let find = |m: &Spanned<String>, key: String| -> Result<u32, SceneError> {
+            materials
+                .iter()
+                .position(|x| &x.name == m.get_ref())
+                .map(|i| i as u32)
+                .ok_or_else(|| {
+                    self.err(
+                        m.span(),
+                        key,
+                        format!("undefined material {:?}", m.get_ref()),
+                    )
+                })
+        };
+
+        let mut planes = Vec::with_capacity(raw.plane.len());
+        for (i, p) in raw.plane.iter().enumerate() {
+            planes.push(Plane {
+                point: self.vec3(&p.point, &format!("plane[{i}].point"))?,
+                normal: self
+                    .direction(&p.normal, &format!("plane[{i}].normal"))?
+                    .normalize(),
+                material: find(&p.material, format!("plane[{i}].material"))?,
+            });
+        }
+
+        let mut spheres = Vec::with_capacity(raw.sphere.len());
+        for (i, s) in raw.sphere.iter().enumerate() {
+            let key = format!("sphere[{i}].radius");
+            let radius = self.float(&s.radius, &key)?;
+            if radius <= 0.0 {
+                return Err(self.err(s.radius.span(), key, format!("{radius} must be > 0")));
+            }
+            spheres.push(Sphere {
+                center: self.vec3(&s.center, &format!("sphere[{i}].center"))?,
+                radius,
+                material: find(&s.material, format!("sphere[{i}].material"))?,
+            });
+        }
+
+        let mut meshes = Vec::with_capacity(raw.mesh.len());
+        for (i, m) in raw.mesh.iter().enumerate() {
+            let kdtree = match m.kdtree.as_ref().map(|k| k.get_ref().as_str()) {
+                None | Some("sah") => TreeSource::Sah,
+                Some("midpoint") => TreeSource::Midpoint,
+                Some(file) => TreeSource::File(self.relative(file)),
+            };
+            meshes.push(MeshRef {
+                path: self.relative(m.path.get_ref()),
+                material: find(&m.material, format!("mesh[{i}].material"))?,
+                kdtree,
+            });
+        }
+
+        Ok(Scene {
+            name: self.path.display().to_string(),
+            image,
+            camera,
+            render,
+            lights,
+            materials,
+            spheres,
+            planes,
+            meshes,
+        })
+    }
+
+    fn image(&self, raw: Option<RawImage>) -> Result<ImageSettings, SceneError> {
+        let mut image = ImageSettings {
+            width: 512,
+            height: 512,
+            samples: 1,
+            gamma: 2.2,
+            seed: 0,
+        };
+        let Some(raw) = raw else { return Ok(image) };
+        let side = MAX_IMAGE_SIDE as i64;
+        if let Some(w) = &raw.width {
+            image.width = self.int(w, "image.width", 1, side)?;
+        }
+        if let Some(h) = &raw.height {
+            image.height = self.int(h, "image.height", 1, side)?;
+        }
+        if let Some(s) = &raw.samples {
+            image.samples = self.int(s, "image.samples", 1, MAX_SAMPLES as i64)?;
+        }
+        if let Some(s) = &raw.seed {
+            image.seed = self.int(s, "image.seed", 0, u32::MAX as i64)?;
+        }
+        if let Some(g) = &raw.gamma {
+            let x = self.float(g, "image.gamma")?;
+            if x <= 0.0 {
+                return Err(self.err(g.span(), "image.gamma", "must be > 0"));
+            }
+            image.gamma = x;
+        }
+        Ok(image)
+    }
+
+    fn camera(&self, raw: &RawCamera) -> Result<Camera, SceneError> {
+        let win = raw.window.get_ref();
+        let cam = Camera {
+            eye: self.vec3(&raw.eye, "camera.eye")?,
+            u: self.direction(&raw.u, "camera.u")?,
+            v: self.direction(&raw.v, "camera.v")?,
+            w: self.direction(&raw.w, "camera.w")?,
+            l: self.float(&win.l, "camera.window.l")?,
+            r: self.float(&win.r, "camera.window.r")?,
+            b: self.float(&win.b, "camera.window.b")?,
+            t: self.float(&win.t, "camera.window.t")?,
+            d: self.float(&raw.distance, "camera.distance")?,
+        };
+        if cam.l >= cam.r || cam.b >= cam.t {
+            return Err(self.err(raw.window.span(), "camera.window", "needs l < r and b < t"));
+        }
+        if cam.d <= 0.0 {
+            return Err(self.err(raw.distance.span(), "camera.distance", "must be > 0"));
+        }
+        Ok(cam)
+    }
+
+    fn render(&self, raw: Option<RawRender>) -> Result<RenderSettings, SceneError> {
+        let mut render = RenderSettings {
+            max_depth: 2,
+            shadows: true,
+            ambient: Vec3::ONE,
+            mode: RenderMode::Shaded,
+            robustness: Robustness::default(),
+        };
+        let Some(raw) = raw else { return Ok(render) };
+        if let Some(d) = &raw.max_depth {
+            render.max_depth = self.int(d, "render.max_depth", 0, MAX_DEPTH as i64)?;
+        }
+        if let Some(s) = raw.shadows {
+            render.shadows = s;
+        }
+        render.ambient = self.colour(raw.ambient.as_ref(), "render.ambient", Vec3::ONE)?;
+        if let Some(m) = &raw.mode {
+            render.mode = self.choice(
+                m,
+                "render.mode",
+                &[
+                    ("shaded", RenderMode::Shaded),
+                    ("mask", RenderMode::HitMask),
+                ],
+            )?;
+        }
+        if let Some(o) = &raw.offset {
+            render.robustness.offset = self.choice(
+                o,
+                "render.offset",
+                &[
+                    ("scale-aware", OffsetMethod::ScaleAware),
+                    ("fixed-epsilon", OffsetMethod::FixedEpsilon),
+                ],
+            )?;
+        }
+        if let Some(o) = &raw.sphere_test {
+            render.robustness.sphere = self.choice(
+                o,
+                "render.sphere_test",
+                &[("stable", SphereTest::Stable), ("naive", SphereTest::Naive)],
+            )?;
+        }
+        if let Some(o) = &raw.triangle_test {
+            render.robustness.triangle = self.choice(
+                o,
+                "render.triangle_test",
+                &[
+                    ("watertight", TriangleTest::Watertight),
+                    ("moller-trumbore", TriangleTest::MollerTrumbore),
+                ],
+            )?;
+        }
+        Ok(render)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MINIMAL: &str = r#"
+[camera]
+eye = [0.0, 0.0, 0.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+w = [0.0, 0.0, 1.0]
+window = { l = -0.1, r = 0.1, b = -0.1, t = 0.1 }
+distance = 0.1
+
+[material.m]
+kd = [1.0, 1.0, 1.0]
+
+[[sphere]]
+center = [0.0, 0.0, -5.0]
+radius = 1.0
+material = "m"
+"#;
+
+    fn parse_err(text: &str) -> String {
+        parse(text, Path::new("t.toml")).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn minimal_scene_parses_with_defaults() {
+        let s = parse(MINIMAL, Path::new("t.toml")).unwrap();
+        assert_eq!(s.image.width, 512);
+        assert_eq!(s.render.max_depth, 2);
+        assert_eq!(s.spheres.len(), 1);
+        assert_eq!(s.materials[0].kd, Vec3::ONE);
+    }
+
+    #[test]
+    fn negative_radius_names_line_and_key() {
+        let e = parse_err(&MINIMAL.replace("radius = 1.0", "radius = -1.0"));
+        assert!(e.starts_with("t.toml:15: sphere[0].radius:"), "{e}");
+    }
+
+    #[test]
+    fn unknown_key_is_an_error_with_its_line() {
+        let e = parse_err(&MINIMAL.replace("radius = 1.0", "radius = 1.0\nradus = 2.0"));
+        assert!(e.starts_with("t.toml:16: radus:"), "{e}");
+        assert!(e.contains("unknown field"), "{e}");
+    }
+
+    #[test]
+    fn undefined_material_is_named() {
+        let e = parse_err(&MINIMAL.replace("material = \"m\"", "material = \"gold\""));
+        assert!(
+            e.contains("t.toml:16: sphere[0].material: undefined material \"gold\""),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn zero_direction_is_rejected() {
+        let e = parse_err(&MINIMAL.replace("u = [1.0, 0.0, 0.0]", "u = [0.0, 0.0, 0.0]"));
+        assert!(e.starts_with("t.toml:4: camera.u:"), "{e}");
+    }
+
+    #[test]
+    fn non_finite_numbers_are_rejected() {
+        let e =
+            parse_err(&MINIMAL.replace("center = [0.0, 0.0, -5.0]", "center = [nan, 0.0, -5.0]"));
+        assert!(e.starts_with("t.toml:14: sphere[0].center:"), "{e}");
+        let e = parse_err(&MINIMAL.replace("distance = 0.1", "distance = inf"));
+        assert!(e.starts_with("t.toml:8: camera.distance:"), "{e}");
+        let e = parse_err(&MINIMAL.replace("distance = 0.1", "distance = 1e300"));
+        assert!(e.contains("32-bit"), "{e}");
+    }
+
+    #[test]
+    fn missing_required_key_is_an_error() {
+        let e = parse_err(&MINIMAL.replace("distance = 0.1\n", ""));
+        assert!(e.contains("distance"), "{e}");
+        assert!(e.starts_with("t.toml:"), "{e}");
+    }
+
+    #[test]
+    fn wrong_type_is_an_error() {
+        let e = parse_err(&MINIMAL.replace("radius = 1.0", "radius = \"big\""));
+        assert!(e.starts_with("t.toml:15: radius:"), "{e}");
+    }
+
+    #[test]
+    fn out_of_range_settings_are_rejected() {
+        let e = parse_err(&format!("[image]\nsamples = 0\n{MINIMAL}"));
+        assert!(e.starts_with("t.toml:2: image.samples:"), "{e}");
+        let e = parse_err(&format!("[render]\nmax_depth = -1\n{MINIMAL}"));
+        assert!(e.starts_with("t.toml:2: render.max_depth:"), "{e}");
+        let e = parse_err(&MINIMAL.replace("kd = [1.0, 1.0, 1.0]", "alpha = 1.5"));
+        assert!(e.starts_with("t.toml:11: material.m.alpha:"), "{e}");
+    }
+
+    #[test]
+    fn relative_mesh_paths_follow_the_scene_file() {
+        let text =
+            format!("{MINIMAL}\n[[mesh]]\npath = \"m.obj\"\nmaterial = \"m\"\nkdtree = \"t.kd\"\n");
+        let s = parse(&text, Path::new("dir/s.toml")).unwrap();
+        assert_eq!(s.meshes[0].path, Path::new("dir/m.obj"));
+        assert_eq!(s.meshes[0].kdtree, TreeSource::File("dir/t.kd".into()));
+    }
+}

@@ -1,0 +1,245 @@
+//! The scene description: image, camera, render settings, lights, materials and primitives.
+//!
+//! A [`Scene`] is pure data, as read from a TOML file ([`file`]) or built in ([`builtin`]). Meshes
+//! are referred to by path; [`crate::world::World`] loads them and builds the acceleration
+//! structure.
+
+pub mod builtin;
+pub mod camera;
+pub mod file;
+pub mod overrides;
+
+use std::path::PathBuf;
+
+use glam::Vec3;
+
+pub use camera::Camera;
+
+/// Image size, sampling and output transfer curve (`[image]`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct ImageSettings {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Samples per pixel (box filter). 1 means one ray through each pixel centre.
+    pub samples: u32,
+    /// Display gamma applied after averaging: `pixel = round(255 · L^(1/gamma))`.
+    pub gamma: f32,
+    /// Seed of the stratified jitter; the same seed gives the same image.
+    pub seed: u32,
+}
+
+/// What the film records for each sample.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RenderMode {
+    /// Whitted shading: ambient, Blinn-Phong, shadows, mirror reflections.
+    Shaded,
+    /// White where the primary ray hits anything, black elsewhere.
+    HitMask,
+}
+
+/// How secondary-ray origins are moved off the surface they leave.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OffsetMethod {
+    /// Scale-aware offset along the normal in units of the hit point's ulp (Wächter & Binder,
+    /// Ray Tracing Gems ch. 6). The default.
+    ScaleAware,
+    /// A fixed world-space epsilon of 1e-4 along the normal: the naive method, kept only so the
+    /// error report can show where it breaks.
+    FixedEpsilon,
+}
+
+/// Which ray/sphere formulation the intersect stage uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SphereTest {
+    /// Haines, Günther & Akenine-Möller, Ray Tracing Gems ch. 7. The default.
+    Stable,
+    /// The textbook `b² − 4ac` quadratic, kept for the error report.
+    Naive,
+}
+
+/// Which ray/triangle test the kD traversal uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TriangleTest {
+    /// Woop, Benthin & Wald 2013. The default.
+    Watertight,
+    /// Möller–Trumbore, kept for the error report.
+    MollerTrumbore,
+}
+
+/// Numerical variants; the defaults are the robust ones.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Robustness {
+    /// Secondary-ray origin offset.
+    pub offset: OffsetMethod,
+    /// Ray/sphere test.
+    pub sphere: SphereTest,
+    /// Ray/triangle test.
+    pub triangle: TriangleTest,
+}
+
+impl Default for Robustness {
+    fn default() -> Self {
+        Self {
+            offset: OffsetMethod::ScaleAware,
+            sphere: SphereTest::Stable,
+            triangle: TriangleTest::Watertight,
+        }
+    }
+}
+
+/// Global render settings (`[render]`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Reflections after the primary ray (SPEC §2's `D`).
+    pub max_depth: u32,
+    /// Trace shadow rays.
+    pub shadows: bool,
+    /// Ambient intensity `Ia` per channel.
+    pub ambient: Vec3,
+    /// Shaded image or hit/miss mask.
+    pub mode: RenderMode,
+    /// Numerical variants (robust by default).
+    pub robustness: Robustness,
+}
+
+/// A point light without falloff.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PointLight {
+    /// Position `q`.
+    pub position: Vec3,
+    /// Intensity `I` per channel.
+    pub intensity: Vec3,
+}
+
+/// A Whitted material: `L = (1 − α)(La + Ld + Ls) + α·Lm`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Material {
+    /// Name used by primitives in scene files.
+    pub name: String,
+    /// Ambient reflectance.
+    pub ka: Vec3,
+    /// Diffuse reflectance.
+    pub kd: Vec3,
+    /// Specular reflectance; zero means no specular evaluation at all.
+    pub ks: Vec3,
+    /// Blinn-Phong exponent.
+    pub p: f32,
+    /// Mirror reflectivity α in [0, 1].
+    pub alpha: f32,
+}
+
+impl Material {
+    /// True when the material has a specular term to evaluate.
+    pub fn has_specular(&self) -> bool {
+        self.ks != Vec3::ZERO
+    }
+
+    /// True when the material spawns reflection rays.
+    pub fn reflects(&self) -> bool {
+        self.alpha > 0.0
+    }
+}
+
+/// A sphere.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Sphere {
+    /// Centre.
+    pub center: Vec3,
+    /// Radius (> 0).
+    pub radius: f32,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// An infinite plane.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Plane {
+    /// Any point on the plane.
+    pub point: Vec3,
+    /// Unit normal (shading flips it to face the ray).
+    pub normal: Vec3,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+}
+
+/// Where a mesh's kD tree comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum TreeSource {
+    /// Build with the surface area heuristic (the default).
+    Sah,
+    /// Build with the assignment's midpoint rule.
+    Midpoint,
+    /// Load a prebuilt tree in SPEC §6's text format.
+    File(PathBuf),
+}
+
+/// A triangle mesh referenced by path.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshRef {
+    /// OBJ file (relative paths are already resolved against the scene file).
+    pub path: PathBuf,
+    /// Index into [`Scene::materials`].
+    pub material: u32,
+    /// Tree to use for this mesh.
+    pub kdtree: TreeSource,
+}
+
+/// A complete scene description.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Scene {
+    /// Display name (built-in name or file path).
+    pub name: String,
+    /// Image settings.
+    pub image: ImageSettings,
+    /// Camera.
+    pub camera: Camera,
+    /// Render settings.
+    pub render: RenderSettings,
+    /// Point lights.
+    pub lights: Vec<PointLight>,
+    /// Materials, referenced by index.
+    pub materials: Vec<Material>,
+    /// Spheres.
+    pub spheres: Vec<Sphere>,
+    /// Planes.
+    pub planes: Vec<Plane>,
+    /// Triangle meshes.
+    pub meshes: Vec<MeshRef>,
+}
+
+impl Scene {
+    /// True when some material reflects and the depth limit allows a reflection.
+    pub fn needs_reflections(&self) -> bool {
+        self.render.mode == RenderMode::Shaded
+            && self.render.max_depth > 0
+            && self.used_materials().any(Material::reflects)
+    }
+
+    /// True when shadow rays are traced: shadows on, at least one light, shaded mode.
+    pub fn needs_shadows(&self) -> bool {
+        self.render.mode == RenderMode::Shaded && self.render.shadows && !self.lights.is_empty()
+    }
+
+    /// True when some used material has a specular term and there is a light.
+    pub fn needs_specular(&self) -> bool {
+        self.render.mode == RenderMode::Shaded
+            && !self.lights.is_empty()
+            && self.used_materials().any(Material::has_specular)
+    }
+
+    /// Materials referenced by at least one primitive.
+    pub fn used_materials(&self) -> impl Iterator<Item = &Material> {
+        let used = |m: u32| {
+            self.spheres.iter().any(|s| s.material == m)
+                || self.planes.iter().any(|p| p.material == m)
+                || self.meshes.iter().any(|x| x.material == m)
+        };
+        self.materials
+            .iter()
+            .enumerate()
+            .filter(move |(i, _)| used(*i as u32))
+            .map(|(_, m)| m)
+    }
+}

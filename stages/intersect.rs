@@ -1,0 +1,104 @@
+//! Stage `intersect`: the closest hit of every ray, then the hits compacted in order.
+//!
+//! Reads: `RayQueue.{origin, direction, t_max}` (and `weight`, `slot` to carry them along).
+//! Writes: `HitColumns.{t, prim}` row for row, then `HitQueue.{origin, direction, weight, slot,
+//! t, prim}` for the rows that hit. Misses leave the pipeline (the sky is black).
+
+use rayon::prelude::*;
+
+use crate::queue::compact::{gather, kept_rows};
+use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, RayQueue};
+use crate::world::World;
+
+/// Closest hit of every ray in `rays` into `hits` (one row per ray).
+pub fn intersect_closest(world: &World, rays: &RayQueue, hits: &mut HitColumns) {
+    let (t, prim): (Vec<_>, Vec<_>) = (&rays.origin, &rays.direction, &rays.t_max)
+        .into_par_iter()
+        .with_min_len(MIN_CHUNK)
+        .map(|(&o, &d, &t_max)| world.intersect_closest(o, d, t_max))
+        .unzip();
+    hits.t = t;
+    hits.prim = prim;
+}
+
+/// Copies the rays that hit, with their hits, into `out` in slot order. `rows` is scratch.
+pub fn compact_hits(rays: &RayQueue, hits: &HitColumns, rows: &mut Vec<u32>, out: &mut HitQueue) {
+    kept_rows(rays.len(), |i| hits.prim[i].is_hit(), rows);
+    gather(&rays.origin, rows, &mut out.origin);
+    gather(&rays.direction, rows, &mut out.direction);
+    gather(&rays.weight, rows, &mut out.weight);
+    gather(&rays.slot, rows, &mut out.slot);
+    gather(&hits.t, rows, &mut out.t);
+    gather(&hits.prim, rows, &mut out.prim);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::queue::{PrimId, RayItem, SampleSlot};
+    use crate::scene::builtin::spheres;
+    use glam::Vec3;
+
+    #[test]
+    fn misses_leave_the_queue_and_hits_keep_their_order() {
+        let scene = spheres();
+        let world = World::load(&scene).unwrap();
+        let mut rays = RayQueue::default();
+        let towards = |s: u32, d: Vec3| RayItem {
+            origin: Vec3::ZERO,
+            direction: d.normalize(),
+            t_max: f32::INFINITY,
+            weight: Vec3::splat(s as f32),
+            slot: SampleSlot(s),
+        };
+        rays.push(towards(0, Vec3::new(0.0, 0.0, -1.0))); // green sphere S2, t = 5
+        rays.push(towards(1, Vec3::new(0.0, 1.0, 0.0))); // sky
+        rays.push(towards(2, Vec3::new(-4.0, 0.0, -7.0))); // red sphere S1
+        rays.push(towards(3, Vec3::new(0.0, -1.0, 0.0))); // floor, t = 2
+        let mut hits = HitColumns::default();
+        intersect_closest(&world, &rays, &mut hits);
+        assert_eq!(
+            hits.prim,
+            vec![PrimId(1), PrimId::NONE, PrimId(0), PrimId(3)]
+        );
+        assert_eq!(hits.t[0], 5.0);
+        assert_eq!(hits.t[1], f32::INFINITY);
+        assert_eq!(hits.t[3], 2.0);
+
+        let mut out = HitQueue::default();
+        compact_hits(&rays, &hits, &mut vec![], &mut out);
+        assert_eq!(out.slot, vec![SampleSlot(0), SampleSlot(2), SampleSlot(3)]);
+        assert_eq!(out.prim, vec![PrimId(1), PrimId(0), PrimId(3)]);
+        assert_eq!(out.weight[2], Vec3::splat(3.0));
+        assert_eq!(out.t[2], 2.0);
+    }
+
+    #[test]
+    fn poisoned_rays_miss_without_disturbing_others() {
+        let world = World::load(&spheres()).unwrap();
+        let mut rays = RayQueue::default();
+        for (s, (o, d)) in [
+            (Vec3::NAN, Vec3::NEG_Z),
+            (Vec3::ZERO, Vec3::NEG_Z),
+            (Vec3::ZERO, Vec3::new(f32::INFINITY, 0.0, -1.0)),
+            (Vec3::splat(f32::INFINITY), Vec3::NEG_Z),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            rays.push(RayItem {
+                origin: o,
+                direction: d,
+                t_max: f32::INFINITY,
+                weight: Vec3::ONE,
+                slot: SampleSlot(s as u32),
+            });
+        }
+        let mut hits = HitColumns::default();
+        intersect_closest(&world, &rays, &mut hits);
+        assert_eq!(
+            hits.prim,
+            vec![PrimId::NONE, PrimId(1), PrimId::NONE, PrimId::NONE]
+        );
+    }
+}

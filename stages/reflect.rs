@@ -1,0 +1,110 @@
+//! Stage `reflect`: mirror rays for the next depth from every hit on a reflective material.
+//!
+//! Reads: `HitQueue.{point, normal, material, direction, weight, slot}`, materials.
+//! Writes: the next depth's `RayQueue` (compacted, slot order) with `weight·α`.
+
+use rayon::prelude::*;
+
+use crate::geometry::offset::offset_origin;
+use crate::queue::compact::kept_rows;
+use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue};
+use crate::scene::OffsetMethod;
+use crate::world::World;
+
+/// The reflection of hit row `i`: `r = d − 2(d·n)n` from the offset hit point, weight `weight·α`.
+#[inline]
+pub fn reflection_ray(world: &World, offset: OffsetMethod, hits: &HitQueue, i: usize) -> RayItem {
+    let (d, n) = (hits.direction[i], hits.normal[i]);
+    let alpha = world.materials[hits.material[i] as usize].alpha;
+    RayItem {
+        origin: offset_origin(hits.point[i], n, offset),
+        direction: d - 2.0 * d.dot(n) * n,
+        t_max: f32::INFINITY,
+        weight: hits.weight[i] * alpha,
+        slot: hits.slot[i],
+    }
+}
+
+/// Spawns the next depth's rays into `next` (cleared first); `rows` is scratch.
+pub fn spawn_reflection_rays(
+    world: &World,
+    offset: OffsetMethod,
+    hits: &HitQueue,
+    rows: &mut Vec<u32>,
+    next: &mut RayQueue,
+) {
+    let reflects = |i: usize| world.materials[hits.material[i] as usize].reflects();
+    kept_rows(hits.len(), reflects, rows);
+    let n = rows.len();
+    next.clear();
+    next.origin.resize(n, Default::default());
+    next.direction.resize(n, Default::default());
+    next.t_max.resize(n, f32::INFINITY);
+    next.weight.resize(n, Default::default());
+    next.slot.resize(n, Default::default());
+    (
+        &mut next.origin,
+        &mut next.direction,
+        &mut next.weight,
+        &mut next.slot,
+        rows.as_slice(),
+    )
+        .into_par_iter()
+        .with_min_len(MIN_CHUNK)
+        .for_each(|(o, d, w, s, &i)| {
+            let r = reflection_ray(world, offset, hits, i as usize);
+            (*o, *d, *w, *s) = (r.origin, r.direction, r.weight, r.slot);
+        });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::queue::{PrimId, SampleSlot};
+    use crate::scene::builtin::spheres;
+    use glam::Vec3;
+
+    #[test]
+    fn only_reflective_hits_spawn_rays_with_alpha_weight() {
+        let world = World::load(&spheres()).unwrap();
+        let mut hits = HitQueue::default();
+        // Row 0: red sphere (α = 0); row 1: floor (α = 0.5) hit at 45°.
+        for (s, (p, n, m, d)) in [
+            (Vec3::new(-4.0, 0.0, -6.0), Vec3::Z, 1u32, Vec3::NEG_Z),
+            (
+                Vec3::new(0.0, -2.0, -2.0),
+                Vec3::Y,
+                0,
+                Vec3::new(0.0, -1.0, -1.0).normalize(),
+            ),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            hits.origin.push(Vec3::ZERO);
+            hits.direction.push(d);
+            hits.weight.push(Vec3::splat(0.8));
+            hits.slot.push(SampleSlot(10 + s as u32));
+            hits.t.push(1.0);
+            hits.prim.push(PrimId(0));
+            hits.point.push(p);
+            hits.normal.push(n);
+            hits.material.push(m);
+        }
+        let mut next = RayQueue::default();
+        spawn_reflection_rays(
+            &world,
+            OffsetMethod::ScaleAware,
+            &hits,
+            &mut vec![],
+            &mut next,
+        );
+        assert_eq!(next.len(), 1);
+        let r = next.get(0);
+        assert_eq!(r.slot, SampleSlot(11));
+        assert_eq!(r.weight, Vec3::splat(0.4));
+        assert!((r.direction - Vec3::new(0.0, 1.0, -1.0).normalize()).length() < 1e-6);
+        assert!(r.origin.y > -2.0, "origin is above the floor");
+        assert!(r.origin.y + 2.0 < 1e-4, "but only just");
+    }
+}

@@ -1,0 +1,347 @@
+//! Stage `shade`: local Whitted shading at every hit (SPEC §2) and the shadow rays it needs.
+//!
+//! Reads: `HitQueue.{origin, direction, weight, slot, t, prim}`, materials, lights.
+//! Writes: `HitQueue.{point, normal, material}`; `emitted` (one row per hit: the radiance added to
+//! the sample now, `(1 − α)·weight·(La [+ Ld + Ls when shadows are off])`); `ShadowQueue` (one row
+//! per hit and light that can light it, carrying `(1 − α)·weight·(Ld + Ls)`).
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::geometry::offset::offset_origin;
+use crate::queue::compact::{gather, kept_rows};
+use crate::queue::{HitQueue, MIN_CHUNK, ShadowQueue};
+use crate::scene::{Material, OffsetMethod, PointLight, Scene};
+use crate::world::World;
+
+/// What the shade kernel needs besides the world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeSettings {
+    /// Ambient intensity `Ia`.
+    pub ambient: Vec3,
+    /// Defer the direct terms to shadow rays.
+    pub shadows: bool,
+    /// Evaluate the specular term at all (false when no material has `ks > 0`).
+    pub specular: bool,
+    /// Secondary-ray origin offset.
+    pub offset: OffsetMethod,
+}
+
+impl ShadeSettings {
+    /// The settings a scene implies.
+    pub fn for_scene(scene: &Scene) -> ShadeSettings {
+        ShadeSettings {
+            ambient: scene.render.ambient,
+            shadows: scene.needs_shadows(),
+            specular: scene.needs_specular(),
+            offset: scene.render.robustness.offset,
+        }
+    }
+}
+
+/// `(Ld + Ls)·I` from one light at `p` with facing normal `n` and unit view vector `v`, and
+/// `n·l`. Finite for every finite input: a zero half vector counts as `n·h = 0`, and a light at
+/// `p` itself gives nothing.
+#[inline]
+pub fn direct_light(
+    light: &PointLight,
+    m: &Material,
+    specular: bool,
+    p: Vec3,
+    n: Vec3,
+    v: Vec3,
+) -> (Vec3, f32) {
+    let to_light = light.position - p;
+    let dist = to_light.length();
+    if !(dist > 0.0 && dist.is_finite()) {
+        return (Vec3::ZERO, 0.0);
+    }
+    let l = to_light / dist;
+    let n_dot_l = n.dot(l);
+    let mut c = m.kd * n_dot_l.max(0.0);
+    if specular && m.has_specular() {
+        let h = l + v;
+        let len = h.length();
+        let n_dot_h = if len > 0.0 {
+            n.dot(h / len).max(0.0)
+        } else {
+            0.0
+        };
+        c += m.ks * n_dot_h.powf(m.p);
+    }
+    (c * light.intensity, n_dot_l)
+}
+
+/// Shades one hit: returns the radiance emitted now and, through `shadow`, each light's deferred
+/// radiance and shadow ray (`None` where the light cannot contribute).
+#[inline]
+pub fn shade_hit(
+    world: &World,
+    settings: &ShadeSettings,
+    (direction, weight): (Vec3, Vec3),
+    (point, normal, material): (Vec3, Vec3, u32),
+    mut shadow: impl FnMut(usize, Option<(Vec3, Vec3, f32, Vec3)>),
+) -> Vec3 {
+    let m = &world.materials[material as usize];
+    let w = weight * (1.0 - m.alpha);
+    let v = -direction;
+    let mut emitted = m.ka * settings.ambient;
+    let origin = settings
+        .shadows
+        .then(|| offset_origin(point, normal, settings.offset));
+    for (j, light) in world.lights.iter().enumerate() {
+        let (c, n_dot_l) = direct_light(light, m, settings.specular, point, normal, v);
+        match origin {
+            None => emitted += c,
+            // A light behind the surface is blocked by the surface itself.
+            Some(o) if n_dot_l > 0.0 && c != Vec3::ZERO => {
+                let to = light.position - o;
+                let dist = to.length();
+                shadow(j, Some((o, to / dist, dist, w * c)));
+            }
+            Some(_) => shadow(j, None),
+        }
+    }
+    w * emitted
+}
+
+/// Scratch for the shade kernel's variable output, reused across waves.
+#[derive(Debug, Default)]
+pub struct ShadeScratch {
+    candidates: ShadowQueue,
+    rows: Vec<u32>,
+}
+
+/// Shades every hit in `hits`: fills its surface columns, `emitted` (one row per hit) and
+/// `shadows` (compacted, slot order).
+pub fn shade_hits(
+    world: &World,
+    settings: &ShadeSettings,
+    hits: &mut HitQueue,
+    emitted: &mut Vec<Vec3>,
+    scratch: &mut ShadeScratch,
+    shadows: &mut ShadowQueue,
+) {
+    let n = hits.len();
+    hits.point.resize(n, Vec3::ZERO);
+    hits.normal.resize(n, Vec3::ZERO);
+    hits.material.resize(n, 0);
+    (
+        &mut hits.point,
+        &mut hits.normal,
+        &mut hits.material,
+        (&hits.prim, &hits.origin, &hits.direction, &hits.t),
+    )
+        .into_par_iter()
+        .with_min_len(MIN_CHUNK)
+        .for_each(|(p, nrm, m, (&prim, &o, &d, &t))| (*p, *nrm, *m) = world.surface(prim, o, d, t));
+
+    let lights = world.lights.len();
+    let shadowed = settings.shadows && lights > 0;
+    let c = &mut scratch.candidates;
+    let rows = if shadowed { n * lights } else { 0 };
+    for col in [&mut c.origin, &mut c.direction, &mut c.radiance] {
+        col.resize(rows, Vec3::ZERO);
+    }
+    c.t_max.resize(rows, 0.0);
+    c.slot.clear();
+    c.slot.extend(
+        hits.slot
+            .iter()
+            .flat_map(|&s| std::iter::repeat_n(s, if shadowed { lights } else { 0 })),
+    );
+
+    let hit_cols = (
+        &hits.direction,
+        &hits.weight,
+        &hits.point,
+        &hits.normal,
+        &hits.material,
+    );
+    if shadowed {
+        (
+            hit_cols,
+            c.origin.par_chunks_mut(lights),
+            c.direction.par_chunks_mut(lights),
+            c.t_max.par_chunks_mut(lights),
+            c.radiance.par_chunks_mut(lights),
+        )
+            .into_par_iter()
+            .with_min_len(MIN_CHUNK / lights.max(1))
+            .map(|((&d, &w, &p, &nrm, &m), o, dir, tm, rad)| {
+                shade_hit(world, settings, (d, w), (p, nrm, m), |j, s| match s {
+                    Some((so, sd, st, sr)) => (o[j], dir[j], tm[j], rad[j]) = (so, sd, st, sr),
+                    None => rad[j] = Vec3::ZERO,
+                })
+            })
+            .collect_into_vec(emitted);
+        kept_rows(rows, |i| c.radiance[i] != Vec3::ZERO, &mut scratch.rows);
+        gather(&c.origin, &scratch.rows, &mut shadows.origin);
+        gather(&c.direction, &scratch.rows, &mut shadows.direction);
+        gather(&c.t_max, &scratch.rows, &mut shadows.t_max);
+        gather(&c.radiance, &scratch.rows, &mut shadows.radiance);
+        gather(&c.slot, &scratch.rows, &mut shadows.slot);
+    } else {
+        hit_cols
+            .into_par_iter()
+            .with_min_len(MIN_CHUNK)
+            .map(|(&d, &w, &p, &nrm, &m)| shade_hit(world, settings, (d, w), (p, nrm, m), |_, _| {}))
+            .collect_into_vec(emitted);
+        shadows.clear();
+    }
+}
+
+/// The hit/miss mask variant of shade: every hit emits its weight (white for primary rays).
+///
+/// Reads: `HitQueue.weight`. Writes: `emitted`.
+pub fn shade_hit_mask(hits: &HitQueue, emitted: &mut Vec<Vec3>) {
+    emitted.clear();
+    emitted.extend_from_slice(&hits.weight);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::queue::{PrimId, SampleSlot};
+    use crate::scene::builtin::spheres;
+
+    /// A hit queue with one primary hit on each object of scene A.
+    fn scene_a_hits(world: &World) -> HitQueue {
+        let mut q = HitQueue::default();
+        let dirs = [
+            Vec3::new(0.0, 0.0, -1.0), // S2 (green), t = 5
+            Vec3::new(0.0, -1.0, 0.0), // floor, t = 2
+            Vec3::new(4.0, 0.0, -7.0), // S3 (blue)
+        ];
+        for (s, d) in dirs.into_iter().enumerate() {
+            let d = d.normalize();
+            let (t, prim) = world.intersect_closest(Vec3::ZERO, d, f32::INFINITY);
+            q.origin.push(Vec3::ZERO);
+            q.direction.push(d);
+            q.weight.push(Vec3::ONE);
+            q.slot.push(SampleSlot(s as u32));
+            q.t.push(t);
+            q.prim.push(prim);
+        }
+        assert_eq!(q.prim, vec![PrimId(1), PrimId(3), PrimId(2)]);
+        q
+    }
+
+    #[test]
+    fn without_shadows_everything_is_emitted_at_once() {
+        let mut scene = spheres();
+        scene.render.shadows = false;
+        let world = World::load(&scene).unwrap();
+        let settings = ShadeSettings::for_scene(&scene);
+        let mut hits = scene_a_hits(&world);
+        let (mut emitted, mut shadows) = (vec![], ShadowQueue::default());
+        shade_hits(
+            &world,
+            &settings,
+            &mut hits,
+            &mut emitted,
+            &mut ShadeScratch::default(),
+            &mut shadows,
+        );
+        assert!(shadows.is_empty());
+        assert_eq!(emitted.len(), 3);
+        // Green sphere facing the camera at (0, 0, -5), normal +z; light at (-4, 4, -3).
+        let l = (Vec3::new(-4.0, 4.0, -3.0) - Vec3::new(0.0, 0.0, -5.0)).normalize();
+        let h = (l + Vec3::Z).normalize();
+        let expected = Vec3::new(0.0, 0.2, 0.0)
+            + Vec3::new(0.0, 0.5, 0.0) * l.z
+            + Vec3::splat(0.5) * h.z.powf(32.0);
+        assert!(
+            (emitted[0] - expected).abs().max_element() < 1e-6,
+            "{} vs {expected}",
+            emitted[0]
+        );
+        assert_eq!(hits.normal[0], Vec3::Z);
+        assert_eq!(hits.material, vec![2, 0, 3]);
+        // The floor reflects half: (1 − 0.5)·(0.2 + n·l).
+        let p = Vec3::new(0.0, -2.0, 0.0);
+        let l = (Vec3::new(-4.0, 4.0, -3.0) - p).normalize();
+        assert!((emitted[1].x - 0.5 * (0.2 + l.y)).abs() < 1e-6);
+    }
+
+    #[test]
+    fn with_shadows_direct_light_moves_to_shadow_rays() {
+        let scene = spheres();
+        let world = World::load(&scene).unwrap();
+        let settings = ShadeSettings::for_scene(&scene);
+        let mut hits = scene_a_hits(&world);
+        let (mut emitted, mut shadows) = (vec![], ShadowQueue::default());
+        shade_hits(
+            &world,
+            &settings,
+            &mut hits,
+            &mut emitted,
+            &mut ShadeScratch::default(),
+            &mut shadows,
+        );
+        assert_eq!(emitted[0], Vec3::new(0.0, 0.2, 0.0), "ambient only");
+        assert_eq!(emitted[1], Vec3::splat(0.1), "(1 − α)·ka");
+        assert_eq!(shadows.len(), 3, "every hit here faces the light");
+        assert_eq!(
+            shadows.slot,
+            vec![SampleSlot(0), SampleSlot(1), SampleSlot(2)]
+        );
+        let s = shadows.get(1);
+        let to_light = Vec3::new(-4.0, 4.0, -3.0) - s.origin;
+        assert!((s.direction - to_light.normalize()).length() < 1e-6);
+        assert!((s.t_max - to_light.length()).abs() < 1e-5);
+        assert!(
+            s.origin.y > -2.0,
+            "origin moved off the floor toward the light"
+        );
+        assert!((s.radiance.x - 0.5 * to_light.normalize().y).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_light_behind_the_surface_sends_no_shadow_ray() {
+        let mut scene = spheres();
+        scene.lights[0].position = Vec3::new(0.0, -10.0, 0.0); // below the floor
+        let world = World::load(&scene).unwrap();
+        let settings = ShadeSettings::for_scene(&scene);
+        let mut hits = scene_a_hits(&world);
+        let (mut emitted, mut shadows) = (vec![], ShadowQueue::default());
+        shade_hits(
+            &world,
+            &settings,
+            &mut hits,
+            &mut emitted,
+            &mut ShadeScratch::default(),
+            &mut shadows,
+        );
+        assert!(
+            shadows.slot.iter().all(|&s| s != SampleSlot(1)),
+            "floor hit is lit from behind"
+        );
+    }
+
+    #[test]
+    fn degenerate_light_geometry_stays_finite() {
+        let m = Material {
+            name: "m".into(),
+            ka: Vec3::ZERO,
+            kd: Vec3::ONE,
+            ks: Vec3::ONE,
+            p: 0.0,
+            alpha: 0.0,
+        };
+        let light = PointLight {
+            position: Vec3::new(0.0, 0.0, 1.0),
+            intensity: Vec3::ONE,
+        };
+        // Grazing: n·l = 0.
+        let (c, _) = direct_light(&light, &m, true, Vec3::ZERO, Vec3::X, Vec3::Z);
+        assert!(c.is_finite());
+        // Light exactly opposite the viewer: zero-length half vector; p = 0.
+        let (c, _) = direct_light(&light, &m, true, Vec3::ZERO, Vec3::Z, Vec3::NEG_Z);
+        assert!(c.is_finite());
+        assert_eq!(c, Vec3::splat(2.0), "kd·(n·l = 1) + ks·0^0, n·h taken as 0");
+        // Light at the hit point.
+        let (c, _) = direct_light(&light, &m, true, light.position, Vec3::Z, Vec3::Z);
+        assert_eq!(c, Vec3::ZERO);
+    }
+}
