@@ -1,0 +1,174 @@
+//! Bad input never panics: random and mutated scene files give a scene or an error naming the
+//! file and line; the CLI exits non-zero with one `error:` line and leaves no output behind.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use proptest::prelude::*;
+use wavefront::scene::file::parse;
+
+const SPHERES: &str = include_str!("../scenes/spheres.toml");
+
+/// Replacement tokens that stress the parser and the validation.
+const TOKENS: &[&str] = &[
+    "nan",
+    "inf",
+    "-inf",
+    "1e309",
+    "-1.0",
+    "0",
+    "0.0",
+    "\"x\"",
+    "[]",
+    "[1.0]",
+    "[1.0, 2.0, 3.0, 4.0]",
+    "{}",
+    "true",
+    "=",
+    "[",
+    "]",
+    "[[sphere]]",
+    "[material.red]",
+    "radius = -2.0",
+    "alpha = 2.0",
+    "material = \"none\"",
+    "samples = 0",
+    "max_depth = 100000",
+    "width = 0",
+    "\u{0}",
+    "é",
+    "#",
+    "\"",
+    "4294967296",
+    "-9223372036854775808",
+];
+
+/// A mutation of the scene text: replace a byte range with a token, delete a range, or
+/// duplicate a line.
+fn mutate(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
+    let mut t = text.to_owned();
+    let mut at = at % (t.len() + 1);
+    while !t.is_char_boundary(at) {
+        at -= 1;
+    }
+    let mut end = (at + len % 16).min(t.len());
+    while !t.is_char_boundary(end) {
+        end -= 1;
+    }
+    match kind % 3 {
+        0 => t.replace_range(at..end, TOKENS[token % TOKENS.len()]),
+        1 => t.replace_range(at..end, ""),
+        _ => {
+            let line_start = t[..at].rfind('\n').map_or(0, |i| i + 1);
+            let line_end = t[at..].find('\n').map_or(t.len(), |i| at + i);
+            let line = t[line_start..line_end].to_owned();
+            t.insert_str(line_end, &format!("\n{line}"));
+        }
+    }
+    t
+}
+
+/// An error message must be `file:line: key: message` with a line inside the text.
+fn assert_names_file_and_line(message: &str, text: &str) {
+    let rest = message
+        .strip_prefix("fuzz.toml:")
+        .unwrap_or_else(|| panic!("error does not name the file: {message}"));
+    let line: usize = rest
+        .split(':')
+        .next()
+        .and_then(|l| l.parse().ok())
+        .unwrap_or_else(|| panic!("error does not name the line: {message}"));
+    let lines = text.lines().count().max(1);
+    assert!(
+        line >= 1 && line <= lines + 1,
+        "line {line} outside the file ({lines} lines): {message}"
+    );
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, .. ProptestConfig::default() })]
+
+    #[test]
+    fn mutated_scene_files_parse_or_name_file_and_line(
+        muts in prop::collection::vec((any::<u8>(), any::<usize>(), any::<usize>(), any::<usize>()), 1..4)
+    ) {
+        let mut text = SPHERES.to_owned();
+        for (kind, at, len, token) in muts {
+            text = mutate(&text, kind, at, len, token);
+        }
+        match parse(&text, Path::new("fuzz.toml")) {
+            Ok(scene) => {
+                // Whatever parses is valid: finite, positive radii, materials in range.
+                prop_assert!(scene.spheres.iter().all(|s| s.radius > 0.0 && s.center.is_finite()));
+                prop_assert!(scene.spheres.iter().all(|s| (s.material as usize) < scene.materials.len()));
+                prop_assert!(scene.image.samples >= 1 && scene.image.width >= 1);
+            }
+            Err(e) => assert_names_file_and_line(&e.to_string(), &text),
+        }
+    }
+
+    #[test]
+    fn random_bytes_never_panic_the_scene_parser(bytes in prop::collection::vec(any::<u8>(), 0..400)) {
+        let text = String::from_utf8_lossy(&bytes);
+        if let Err(e) = parse(&text, Path::new("fuzz.toml")) {
+            assert_names_file_and_line(&e.to_string(), &text);
+        }
+    }
+}
+
+fn temp_dir(name: &str) -> PathBuf {
+    let dir =
+        std::env::temp_dir().join(format!("wavefront-bad-input-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+#[test]
+fn the_cli_rejects_mutated_scenes_cleanly() {
+    let dir = temp_dir("cli");
+    let mut rejected = 0;
+    // A fixed, seeded selection of mutations, each through the real binary.
+    for k in 0..40usize {
+        let text = mutate(SPHERES, (k % 3) as u8, k * 7919, k * 31, k * 13);
+        let scene = dir.join(format!("s{k}.toml"));
+        std::fs::write(&scene, &text).unwrap();
+        let out = dir.join(format!("o{k}.png"));
+        let run = Command::new(env!("CARGO_BIN_EXE_wavefront"))
+            .args([
+                "render",
+                scene.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--samples",
+                "1",
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !stderr.contains("panicked"),
+            "panic on mutation {k}: {stderr}"
+        );
+        if run.status.success() {
+            assert!(out.exists(), "success without an image on mutation {k}");
+        } else {
+            rejected += 1;
+            assert_eq!(run.status.code(), Some(1), "{stderr}");
+            assert!(stderr.starts_with("error: "), "{stderr}");
+            assert_eq!(stderr.trim_end().lines().count(), 1, "one line: {stderr}");
+            assert!(!out.exists(), "output left behind on mutation {k}");
+        }
+    }
+    assert!(
+        rejected > 5,
+        "the mutations must produce errors to test ({rejected})"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "partial files left: {leftovers:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
