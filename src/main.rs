@@ -33,6 +33,51 @@ enum Command {
     /// Build or check kD trees in the text format of SPEC §6.
     #[command(subcommand)]
     Kdtree(KdtreeCommand),
+    /// Measure error against run time; write report.md, report.csv and error_vs_time.png.
+    Report(ReportArgs),
+    /// Time each stage kernel alone on a snapshot of its input queue (and a full frame).
+    Bench(BenchArgs),
+}
+
+#[derive(Args)]
+struct BenchArgs {
+    /// Scene file or built-in name.
+    #[arg(default_value = "spheres")]
+    scene: String,
+    /// Mesh file replacing the scene's mesh path.
+    #[arg(long)]
+    mesh: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    threads: Option<usize>,
+    /// Timed runs per kernel (best taken) and renders per frame (median taken).
+    #[arg(long, default_value_t = 5)]
+    repeat: usize,
+    /// Print one JSON object per line instead of tables.
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Args)]
+struct ReportArgs {
+    /// Scene file or built-in name (Sibenik parts run when its mesh is found).
+    #[arg(default_value = "spheres")]
+    scene: String,
+    /// Output directory.
+    #[arg(short, long, default_value = "report")]
+    output: PathBuf,
+    /// Timed renders per configuration (the median is reported).
+    #[arg(long, default_value_t = 3)]
+    runs: usize,
+    /// Image width and height (smaller is faster; the reference scenes are 512).
+    #[arg(long)]
+    size: Option<u32>,
+    /// Samples per pixel of the convergence reference.
+    #[arg(long, default_value_t = 1024)]
+    reference_samples: u32,
+    /// Sibenik mesh for the mesh parts.
+    #[arg(long)]
+    mesh: Option<PathBuf>,
 }
 
 #[derive(Args, Clone)]
@@ -120,6 +165,8 @@ fn main() -> ExitCode {
         Some(Command::Render(args)) => run_render(args),
         Some(Command::Plan(args)) => run_plan(&args),
         Some(Command::Kdtree(cmd)) => run_kdtree(cmd),
+        Some(Command::Bench(args)) => run_bench(&args),
+        Some(Command::Report(args)) => run_report(&args),
         None => unreachable!("defaulted to render above"),
     };
     match result {
@@ -215,6 +262,69 @@ fn run_render(args: RenderArgs) -> Result<()> {
             start.elapsed().as_secs_f64() * 1e3
         );
     }
+    Ok(())
+}
+
+fn run_bench(args: &BenchArgs) -> Result<()> {
+    let mut scene = load_scene(&args.scene)?;
+    Overrides {
+        mesh: args.mesh.clone(),
+        ..Overrides::default()
+    }
+    .apply(&mut scene)?;
+    let threads = match args.threads {
+        Some(0) => bail!("invalid setting --threads: must be at least 1"),
+        Some(n) => n,
+        None => std::thread::available_parallelism().map_or(1, |n| n.get()),
+    };
+    let config = wavefront::bench::BenchConfig {
+        threads,
+        repeat: args.repeat,
+    };
+    let report = wavefront::bench::run(&scene, config)
+        .with_context(|| format!("cannot benchmark scene {}", scene.name))?;
+    if args.json {
+        print!("{}", report.json_lines());
+        for n in &report.notes {
+            eprintln!("note: {n}");
+        }
+    } else {
+        print!("{report}");
+    }
+    Ok(())
+}
+
+fn run_report(args: &ReportArgs) -> Result<()> {
+    use wavefront::report::{ReportSettings, measure, write};
+    let mut scene = load_scene(&args.scene)?;
+    if let Some(n) = args.size {
+        if n == 0 || n > wavefront::scene::file::MAX_IMAGE_SIDE {
+            bail!(
+                "invalid setting --size: {n} is out of range 1..={}",
+                wavefront::scene::file::MAX_IMAGE_SIDE
+            );
+        }
+        scene.image.width = n;
+        scene.image.height = n;
+    }
+    if args.reference_samples == 0 || args.reference_samples > wavefront::scene::file::MAX_SAMPLES {
+        bail!(
+            "invalid setting --reference-samples: must be in 1..={}",
+            wavefront::scene::file::MAX_SAMPLES
+        );
+    }
+    let mut settings = ReportSettings::new(scene);
+    settings.runs = args.runs.max(1);
+    settings.reference_samples = args.reference_samples;
+    if let Some(m) = &args.mesh {
+        settings.sibenik_mesh = m.clone();
+    }
+    let report = measure(&settings, |line| eprintln!("{line}"))?;
+    write(&report, &settings, &args.output)?;
+    println!(
+        "wrote {}/report.md, report.csv, error_vs_time.png",
+        args.output.display()
+    );
     Ok(())
 }
 

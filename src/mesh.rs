@@ -1,56 +1,141 @@
-//! PLACEHOLDER until the mesh module lands: triangle meshes as flat vertex and index arrays.
+//! Triangle meshes: flat vertex and index arrays loaded from Wavefront OBJ files.
+//!
+//! Reads OBJ text (through `tobj`), writes a [`TriangleMesh`] whose triangle `k` is the `k`-th
+//! face of the file. Bad input is rejected here, at load time, with errors naming file and line,
+//! so the kernels that read the mesh later never see non-finite coordinates or bad indices.
 
+use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
+use thiserror::Error;
 
-/// A triangle mesh: flat vertex and index buffers.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TriangleMesh {
-    /// Vertex positions.
-    pub vertices: Vec<[f32; 3]>,
-    /// Vertex indices, three per triangle; triangle k is the k-th face of the file.
-    pub indices: Vec<[u32; 3]>,
-}
-
-/// A mesh file that cannot be loaded.
-#[derive(Debug, thiserror::Error)]
+/// Errors from loading a mesh. Messages are lowercase and name the file and, where there is one,
+/// the 1-based line.
+#[derive(Debug, Error)]
 pub enum MeshError {
-    /// The file could not be read or parsed.
-    #[error("{}: {message}", file.display())]
-    Load {
-        /// The OBJ file.
-        file: PathBuf,
-        /// What went wrong.
+    /// The file could not be opened or read.
+    #[error("cannot read mesh file {path}: {source}")]
+    Read {
+        /// File that failed.
+        path: PathBuf,
+        /// Underlying I/O error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// A `v` line holds a NaN or infinite coordinate.
+    #[error("{path}:{line}: non-finite vertex coordinate in `v` line")]
+    NonFiniteVertex {
+        /// File that failed.
+        path: PathBuf,
+        /// 1-based line number of the `v` line.
+        line: usize,
+    },
+    /// An `f` line refers to a vertex that does not exist (at that point of the file).
+    #[error(
+        "{path}:{line}: face index {index} out of range ({count} vertices defined) in `f` line"
+    )]
+    FaceIndexOutOfRange {
+        /// File that failed.
+        path: PathBuf,
+        /// 1-based line number of the `f` line.
+        line: usize,
+        /// The index as written in the file (1-based, or negative for relative indices).
+        index: i64,
+        /// Number of vertices defined before that line.
+        count: usize,
+    },
+    /// A line could not be parsed.
+    #[error("{path}:{line}: parse error: {message}")]
+    Parse {
+        /// File that failed.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
+    /// `tobj` rejected the file and the line scan could not locate the cause.
+    #[error("{path}: obj error: {message}")]
+    Obj {
+        /// File that failed.
+        path: PathBuf,
+        /// `tobj`'s description.
         message: String,
     },
 }
 
+/// An indexed triangle mesh stored as flat, `Pod` arrays (castable with `bytemuck`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriangleMesh {
+    /// Vertex positions.
+    pub vertices: Vec<[f32; 3]>,
+    /// Vertex indices of each triangle; triangle `k` is the `k`-th face of the source file.
+    pub indices: Vec<[u32; 3]>,
+}
+
 impl TriangleMesh {
-    /// Loads an OBJ file.
+    /// Builds a mesh from vertex and index arrays (no validation beyond debug assertions).
+    pub fn new(vertices: Vec<[f32; 3]>, indices: Vec<[u32; 3]>) -> TriangleMesh {
+        debug_assert!(
+            indices
+                .iter()
+                .flatten()
+                .all(|&i| (i as usize) < vertices.len())
+        );
+        TriangleMesh { vertices, indices }
+    }
+
+    /// Loads an OBJ file through `tobj` (triangulated, single index, all models merged in file
+    /// order, so triangle `k` is the `k`-th face of the file; polygons are fanned in place).
+    ///
+    /// Errors name the file and line: unreadable file, non-finite coordinates (the `v` line),
+    /// face indices out of range (the `f` line), and parse errors.
     pub fn load_obj(path: &Path) -> Result<TriangleMesh, MeshError> {
-        let (models, _) = tobj::load_obj(
-            path,
-            &tobj::LoadOptions {
-                triangulate: true,
-                single_index: true,
-                ..Default::default()
-            },
-        )
-        .map_err(|e| MeshError::Load {
-            file: path.to_path_buf(),
-            message: e.to_string(),
+        let text = std::fs::read_to_string(path).map_err(|source| MeshError::Read {
+            path: path.to_path_buf(),
+            source,
         })?;
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ..Default::default()
+        };
+        let loaded = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        });
+        let models = match loaded {
+            Ok((models, _materials)) => models,
+            Err(e) => {
+                return Err(
+                    scan_for_error(&text, path).unwrap_or_else(|| MeshError::Obj {
+                        path: path.to_path_buf(),
+                        message: e.to_string(),
+                    }),
+                );
+            }
+        };
         let mut mesh = TriangleMesh::default();
-        for m in models {
+        for model in &models {
+            let m = &model.mesh;
             let base = mesh.vertices.len() as u32;
             mesh.vertices
-                .extend(m.mesh.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+                .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
             mesh.indices.extend(
-                m.mesh
-                    .indices
+                m.indices
                     .chunks_exact(3)
-                    .map(|c| [c[0] + base, c[1] + base, c[2] + base]),
+                    .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+            );
+        }
+        let n = mesh.vertices.len();
+        let finite = mesh.vertices.iter().flatten().all(|c| c.is_finite());
+        let in_range = mesh.indices.iter().flatten().all(|&i| (i as usize) < n);
+        if !finite || !in_range {
+            return Err(
+                scan_for_error(&text, path).unwrap_or_else(|| MeshError::Obj {
+                    path: path.to_path_buf(),
+                    message: "invalid vertex data".to_string(),
+                }),
             );
         }
         Ok(mesh)
@@ -61,19 +146,203 @@ impl TriangleMesh {
         self.indices.len()
     }
 
-    /// True when there are no triangles.
+    /// True when the mesh has no triangles.
     pub fn is_empty(&self) -> bool {
         self.indices.is_empty()
     }
 
-    /// The three corners of triangle `k`.
+    /// The three vertices of triangle `k`. Panics if `k` is out of range.
+    #[inline]
     pub fn triangle(&self, k: usize) -> [Vec3; 3] {
-        self.indices[k].map(|i| Vec3::from(self.vertices[i as usize]))
+        let [a, b, c] = self.indices[k];
+        [
+            Vec3::from_array(self.vertices[a as usize]),
+            Vec3::from_array(self.vertices[b as usize]),
+            Vec3::from_array(self.vertices[c as usize]),
+        ]
     }
 
-    /// Unnormalised geometric normal `(b − a) × (c − a)` of triangle `k`.
+    /// Geometric normal of triangle `k`: the UNNORMALISED cross product `(b - a) × (c - a)`
+    /// (its length is twice the area; zero for degenerate triangles).
     pub fn geometric_normal(&self, k: usize) -> Vec3 {
         let [a, b, c] = self.triangle(k);
         (b - a).cross(c - a)
+    }
+
+    /// True when triangle `k` has zero area: its edge cross product, computed in `f64` from the
+    /// `f32` coordinates, is exactly zero. Degenerate triangles keep their index but are never
+    /// hit (the kD tree leaves them out and the brute-force reference skips them).
+    pub fn is_degenerate(&self, k: usize) -> bool {
+        let [a, b, c] = self.triangle(k).map(|v| v.as_dvec3());
+        (b - a).cross(c - a) == DVec3::ZERO
+    }
+
+    /// Axis-aligned bounds `(min, max)` of all vertices; `(0, 0)` for a mesh without vertices.
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        if self.vertices.is_empty() {
+            return (Vec3::ZERO, Vec3::ZERO);
+        }
+        self.vertices.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), v| {
+                let v = Vec3::from_array(*v);
+                (lo.min(v), hi.max(v))
+            },
+        )
+    }
+}
+
+/// Scans OBJ text for the first offending `v` or `f` line. Only called after a failure, so it
+/// does not need to be fast, only cheap and panic-free.
+fn scan_for_error(text: &str, path: &Path) -> Option<MeshError> {
+    let mut count: usize = 0;
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        let l = raw.trim();
+        let mut tokens = l.split_whitespace();
+        let parse = |message: String| MeshError::Parse {
+            path: path.to_path_buf(),
+            line,
+            message,
+        };
+        match tokens.next() {
+            Some("v") => {
+                let coords: Vec<&str> = tokens.take(3).collect();
+                if coords.len() < 3 {
+                    return Some(parse("`v` line needs 3 coordinates".to_string()));
+                }
+                for c in coords {
+                    match c.parse::<f32>() {
+                        Ok(x) if x.is_finite() => {}
+                        Ok(_) => {
+                            return Some(MeshError::NonFiniteVertex {
+                                path: path.to_path_buf(),
+                                line,
+                            });
+                        }
+                        Err(_) => return Some(parse(format!("bad coordinate `{c}`"))),
+                    }
+                }
+                count += 1;
+            }
+            Some("f") => {
+                let mut n = 0;
+                for tok in tokens {
+                    n += 1;
+                    let first = tok.split('/').next().unwrap_or("");
+                    let index: i64 = match first.parse() {
+                        Ok(x) => x,
+                        Err(_) => return Some(parse(format!("bad face index `{tok}`"))),
+                    };
+                    let resolved = if index < 0 {
+                        count as i64 + index
+                    } else {
+                        index - 1
+                    };
+                    if index == 0 || resolved < 0 || resolved >= count as i64 {
+                        return Some(MeshError::FaceIndexOutOfRange {
+                            path: path.to_path_buf(),
+                            line,
+                            index,
+                            count,
+                        });
+                    }
+                }
+                if n < 3 {
+                    return Some(parse("`f` line needs at least 3 vertices".to_string()));
+                }
+            }
+            _ => {}
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn temp_obj(name: &str, text: &str) -> PathBuf {
+        let path = std::env::temp_dir().join(format!(
+            "wavefront-mesh-{}-{}.obj",
+            std::process::id(),
+            name
+        ));
+        std::fs::write(&path, text).expect("write temp obj");
+        path
+    }
+
+    #[test]
+    fn loads_faces_in_file_order_with_triangulation() {
+        let path = temp_obj(
+            "order",
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\no second\nf 1 2 3 4\nf 4 3 2\n",
+        );
+        let mesh = TriangleMesh::load_obj(&path).expect("loads");
+        let _ = std::fs::remove_file(&path);
+        assert_eq!(mesh.len(), 3);
+        assert_eq!(mesh.triangle(2)[0], Vec3::new(0.0, 1.0, 0.0));
+        assert_eq!(mesh.bounds(), (Vec3::ZERO, Vec3::new(1.0, 1.0, 0.0)));
+        assert_eq!(mesh.geometric_normal(0), Vec3::new(0.0, 0.0, 1.0));
+    }
+
+    #[test]
+    fn nan_vertex_names_file_and_line() {
+        let path = temp_obj("nan", "v 0 0 0\nv 1 0 0\n# c\nv nan 1 0\nf 1 2 3\n");
+        let err = TriangleMesh::load_obj(&path).expect_err("nan rejected");
+        let _ = std::fs::remove_file(&path);
+        let msg = err.to_string();
+        assert!(
+            matches!(err, MeshError::NonFiniteVertex { line: 4, .. }),
+            "{msg}"
+        );
+        assert!(msg.contains(&format!("{}:4:", path.display())), "{msg}");
+    }
+
+    #[test]
+    fn out_of_range_face_names_file_and_line() {
+        let path = temp_obj("range", "v 0 0 0\nv 1 0 0\nv 1 1 0\nf 1 2 3\nf 1 2 9\n");
+        let err = TriangleMesh::load_obj(&path).expect_err("bad face rejected");
+        let _ = std::fs::remove_file(&path);
+        let msg = err.to_string();
+        assert!(
+            matches!(
+                err,
+                MeshError::FaceIndexOutOfRange {
+                    line: 5,
+                    index: 9,
+                    ..
+                }
+            ),
+            "{msg}"
+        );
+        assert!(msg.contains(&format!("{}:5:", path.display())), "{msg}");
+    }
+
+    #[test]
+    fn missing_file_names_the_file() {
+        let path = std::env::temp_dir().join("wavefront-definitely-missing.obj");
+        let err = TriangleMesh::load_obj(&path).expect_err("missing");
+        assert!(matches!(err, MeshError::Read { .. }));
+        assert!(err.to_string().contains(&path.display().to_string()));
+    }
+
+    #[test]
+    fn garbage_coordinate_is_a_parse_error_with_line() {
+        let path = temp_obj("garbage", "v 0 0 0\nv 1 x 0\nv 1 1 0\nf 1 2 3\n");
+        let err = TriangleMesh::load_obj(&path).expect_err("garbage rejected");
+        let _ = std::fs::remove_file(&path);
+        assert!(matches!(err, MeshError::Parse { line: 2, .. }), "{err}");
+    }
+
+    #[test]
+    fn collinear_triangle_is_degenerate() {
+        let mesh = TriangleMesh::new(
+            vec![[0.0; 3], [1.0, 1.0, 1.0], [2.0, 2.0, 2.0], [0.0, 1.0, 0.0]],
+            vec![[0, 1, 2], [0, 1, 3], [1, 1, 3]],
+        );
+        assert!(mesh.is_degenerate(0));
+        assert!(!mesh.is_degenerate(1));
+        assert!(mesh.is_degenerate(2));
     }
 }

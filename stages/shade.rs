@@ -185,7 +185,9 @@ pub fn shade_hits(
         hit_cols
             .into_par_iter()
             .with_min_len(MIN_CHUNK)
-            .map(|(&d, &w, &p, &nrm, &m)| shade_hit(world, settings, (d, w), (p, nrm, m), |_, _| {}))
+            .map(|(&d, &w, &p, &nrm, &m)| {
+                shade_hit(world, settings, (d, w), (p, nrm, m), |_, _| {})
+            })
             .collect_into_vec(emitted);
         shadows.clear();
     }

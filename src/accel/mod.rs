@@ -1,3 +1,3 @@
-//! Acceleration structures over triangle meshes.
+//! Acceleration structures for ray/mesh queries.
 
 pub mod kdtree;

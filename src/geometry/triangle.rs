@@ -1,33 +1,281 @@
-//! PLACEHOLDER until the watertight test lands: Möller–Trumbore ray/triangle intersection.
+//! Ray/triangle intersection: the watertight test of Woop, Benthin and Wald (JCGT 2013), its
+//! per-ray precomputation, a Möller–Trumbore variant for comparison, and brute-force references.
+//!
+//! Reads triangle vertices and one ray (origin, unnormalised direction, `t_max`); returns the hit
+//! distance `t` in units of the direction's length. A hit is valid only for `0 < t < t_max`
+//! (strict); degenerate triangles (zero determinant) never hit; no routine returns NaN.
 
 use glam::Vec3;
 
-/// `t` of the hit with triangle `(a, b, c)` if `0 < t < t_max`.
-#[inline]
+use crate::mesh::TriangleMesh;
+
+/// Per-ray data of the watertight test, computed once per ray and shared by every triangle test
+/// (and by kD-tree traversal).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct WatertightRay {
+    /// Ray origin.
+    pub origin: Vec3,
+    /// Index of the dominant direction axis (largest `|d|`), mapped to the sheared z.
+    pub kz: usize,
+    /// Axis mapped to the sheared x (swapped with `ky` when `d[kz] < 0` to keep the winding).
+    pub kx: usize,
+    /// Axis mapped to the sheared y.
+    pub ky: usize,
+    /// Shear `d[kx] / d[kz]`.
+    pub sx: f32,
+    /// Shear `d[ky] / d[kz]`.
+    pub sy: f32,
+    /// Scale `1 / d[kz]`.
+    pub sz: f32,
+}
+
+impl WatertightRay {
+    /// Precomputes the shear for a ray. Returns `None` for a direction that cannot hit anything
+    /// (all components zero, non-finite, or so tiny that `1 / d[kz]` overflows).
+    #[inline]
+    pub fn new(origin: Vec3, dir: Vec3) -> Option<WatertightRay> {
+        let a = dir.abs();
+        let kz = if a.x >= a.y && a.x >= a.z {
+            0
+        } else if a.y >= a.z {
+            1
+        } else {
+            2
+        };
+        let mut kx = if kz == 2 { 0 } else { kz + 1 };
+        let mut ky = if kx == 2 { 0 } else { kx + 1 };
+        let dz = dir[kz];
+        if dz < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        let sz = 1.0 / dz;
+        let sx = dir[kx] / dz;
+        let sy = dir[ky] / dz;
+        if !(sz.is_finite() && sx.is_finite() && sy.is_finite() && origin.is_finite()) {
+            return None;
+        }
+        Some(WatertightRay {
+            origin,
+            kz,
+            kx,
+            ky,
+            sx,
+            sy,
+            sz,
+        })
+    }
+
+    /// Watertight test against triangle `(p0, p1, p2)`. Returns `t` with `0 < t < t_max`, or
+    /// `None`. Both faces hit; edges shared by two triangles are hit by at least one of them.
+    #[inline(always)]
+    pub fn intersect(&self, p0: [f32; 3], p1: [f32; 3], p2: [f32; 3], t_max: f32) -> Option<f32> {
+        let o = self.origin;
+        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let a = [p0[kx] - o[kx], p0[ky] - o[ky], p0[kz] - o[kz]];
+        let b = [p1[kx] - o[kx], p1[ky] - o[ky], p1[kz] - o[kz]];
+        let c = [p2[kx] - o[kx], p2[ky] - o[ky], p2[kz] - o[kz]];
+        let ax = a[0] - self.sx * a[2];
+        let ay = a[1] - self.sy * a[2];
+        let bx = b[0] - self.sx * b[2];
+        let by = b[1] - self.sy * b[2];
+        let cx = c[0] - self.sx * c[2];
+        let cy = c[1] - self.sy * c[2];
+        let mut u = cx * by - cy * bx;
+        let mut v = ax * cy - ay * cx;
+        let mut w = bx * ay - by * ax;
+        if u == 0.0 || v == 0.0 || w == 0.0 {
+            // Fall back to double precision on edges (the paper's exact edge test).
+            let (ax, ay, bx, by, cx, cy) = (
+                ax as f64, ay as f64, bx as f64, by as f64, cx as f64, cy as f64,
+            );
+            u = (cx * by - cy * bx) as f32;
+            v = (ax * cy - ay * cx) as f32;
+            w = (bx * ay - by * ax) as f32;
+        }
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let az = self.sz * a[2];
+        let bz = self.sz * b[2];
+        let cz = self.sz * c[2];
+        let t_scaled = u * az + v * bz + w * cz;
+        let t = t_scaled / det;
+        // `t` is finite here (finite inputs, det != 0), or +-inf for a tiny det; never NaN.
+        if t > 0.0 && t < t_max { Some(t) } else { None }
+    }
+}
+
+/// Watertight intersection of one ray with one triangle (convenience wrapper; traversal should
+/// reuse a [`WatertightRay`]).
+pub fn intersect_watertight(origin: Vec3, dir: Vec3, tri: [Vec3; 3], t_max: f32) -> Option<f32> {
+    WatertightRay::new(origin, dir)?.intersect(
+        tri[0].to_array(),
+        tri[1].to_array(),
+        tri[2].to_array(),
+        t_max,
+    )
+}
+
+/// Möller–Trumbore intersection (not watertight; kept only to compare against the default
+/// test). Same conventions: `0 < t < t_max`, zero determinant never hits, never NaN.
 pub fn intersect_moller_trumbore(
-    o: Vec3,
-    d: Vec3,
-    [a, b, c]: [Vec3; 3],
+    origin: Vec3,
+    dir: Vec3,
+    tri: [Vec3; 3],
     t_max: f32,
 ) -> Option<f32> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let p = d.cross(e2);
+    let e1 = tri[1] - tri[0];
+    let e2 = tri[2] - tri[0];
+    let p = dir.cross(e2);
     let det = e1.dot(p);
     if det == 0.0 || !det.is_finite() {
         return None;
     }
     let inv = 1.0 / det;
-    let s = o - a;
+    let s = origin - tri[0];
     let u = s.dot(p) * inv;
     if !(0.0..=1.0).contains(&u) {
         return None;
     }
     let q = s.cross(e1);
-    let v = d.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
+    let v = dir.dot(q) * inv;
+    if !(v >= 0.0 && u + v <= 1.0) {
         return None;
     }
     let t = e2.dot(q) * inv;
-    (t > 0.0 && t < t_max).then_some(t)
+    if t > 0.0 && t < t_max { Some(t) } else { None }
+}
+
+/// Brute-force reference: closest hit `(t, triangle)` over every non-degenerate triangle of the
+/// mesh with the watertight test; equal `t` resolves to the lowest triangle index.
+pub fn intersect_all_closest(
+    mesh: &TriangleMesh,
+    origin: Vec3,
+    dir: Vec3,
+    t_max: f32,
+) -> Option<(f32, u32)> {
+    let ray = WatertightRay::new(origin, dir)?;
+    let mut best: Option<(f32, u32)> = None;
+    let mut limit = t_max;
+    for (k, idx) in mesh.indices.iter().enumerate() {
+        let [p0, p1, p2] = idx.map(|i| mesh.vertices[i as usize]);
+        if let Some(t) = ray.intersect(p0, p1, p2, limit) {
+            if mesh.is_degenerate(k) {
+                continue;
+            }
+            // Strictly closer only: ascending k keeps the lowest index among equal t.
+            best = Some((t, k as u32));
+            limit = t;
+        }
+    }
+    best
+}
+
+/// Brute-force reference: is any non-degenerate triangle hit with `0 < t < t_max`?
+pub fn intersect_all_occluded(mesh: &TriangleMesh, origin: Vec3, dir: Vec3, t_max: f32) -> bool {
+    let Some(ray) = WatertightRay::new(origin, dir) else {
+        return false;
+    };
+    mesh.indices.iter().enumerate().any(|(k, idx)| {
+        let [p0, p1, p2] = idx.map(|i| mesh.vertices[i as usize]);
+        ray.intersect(p0, p1, p2, t_max).is_some() && !mesh.is_degenerate(k)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TRI: [Vec3; 3] = [
+        Vec3::new(-1.0, -1.0, 2.0),
+        Vec3::new(1.0, -1.0, 2.0),
+        Vec3::new(0.0, 1.0, 2.0),
+    ];
+
+    #[test]
+    fn hits_front_and_back_faces_with_unnormalised_direction() {
+        let t = intersect_watertight(Vec3::ZERO, Vec3::new(0.0, 0.0, 4.0), TRI, f32::INFINITY);
+        assert_eq!(t, Some(0.5));
+        let t = intersect_watertight(
+            Vec3::new(0.0, 0.0, 5.0),
+            Vec3::new(0.0, 0.0, -1.0),
+            TRI,
+            f32::INFINITY,
+        );
+        assert_eq!(t, Some(3.0));
+    }
+
+    #[test]
+    fn t_max_and_zero_are_exclusive() {
+        assert_eq!(intersect_watertight(Vec3::ZERO, Vec3::Z, TRI, 2.0), None);
+        assert_eq!(
+            intersect_watertight(Vec3::new(0.0, 0.0, 2.0), Vec3::Z, TRI, 9.0),
+            None
+        );
+        assert!(intersect_watertight(Vec3::ZERO, Vec3::Z, TRI, 2.0001).is_some());
+    }
+
+    #[test]
+    fn degenerate_and_parallel_never_hit() {
+        let flat = [
+            Vec3::ZERO,
+            Vec3::new(1.0, 0.0, 1.0),
+            Vec3::new(2.0, 0.0, 2.0),
+        ];
+        let o = Vec3::new(0.5, -1.0, 0.5);
+        assert_eq!(intersect_watertight(o, Vec3::Y, flat, f32::INFINITY), None);
+        assert_eq!(
+            intersect_moller_trumbore(o, Vec3::Y, flat, f32::INFINITY),
+            None
+        );
+        // Ray lying in the triangle's plane.
+        let o = Vec3::new(-5.0, 0.0, 2.0);
+        assert_eq!(intersect_watertight(o, Vec3::X, TRI, f32::INFINITY), None);
+        // Zero direction.
+        assert_eq!(
+            intersect_watertight(Vec3::ZERO, Vec3::ZERO, TRI, f32::INFINITY),
+            None
+        );
+    }
+
+    #[test]
+    fn shared_edge_is_hit_by_exactly_one_or_both_never_neither() {
+        let a = Vec3::new(0.0, -1.0, 1.0);
+        let b = Vec3::new(0.0, 1.0, 1.0);
+        let left = [a, b, Vec3::new(-1.0, 0.0, 1.0)];
+        let right = [b, a, Vec3::new(1.0, 0.0, 1.0)];
+        for i in 0..1000 {
+            let y = -0.9 + 1.8 * (i as f32 / 1000.0);
+            let o = Vec3::new(0.0, y, 0.0);
+            let d = Vec3::new(0.0, 0.0137, 1.0);
+            let hl = intersect_watertight(o, d, left, f32::INFINITY);
+            let hr = intersect_watertight(o, d, right, f32::INFINITY);
+            assert!(
+                hl.is_some() || hr.is_some(),
+                "ray {i} leaked through the edge"
+            );
+        }
+    }
+
+    #[test]
+    fn moller_trumbore_agrees_away_from_edges() {
+        let d = Vec3::new(0.1, 0.2, 1.0);
+        let w = intersect_watertight(Vec3::ZERO, d, TRI, f32::INFINITY).expect("hit");
+        let m = intersect_moller_trumbore(Vec3::ZERO, d, TRI, f32::INFINITY).expect("hit");
+        assert!((w - m).abs() < 1e-6);
+    }
+
+    #[test]
+    fn brute_force_prefers_lowest_index_on_ties() {
+        let v: Vec<[f32; 3]> = TRI.iter().map(|p| p.to_array()).collect();
+        let mesh = TriangleMesh::new(v, vec![[0, 1, 2], [2, 1, 0], [0, 1, 2]]);
+        let hit = intersect_all_closest(&mesh, Vec3::ZERO, Vec3::Z, f32::INFINITY);
+        assert_eq!(hit, Some((2.0, 0)));
+        assert!(intersect_all_occluded(&mesh, Vec3::ZERO, Vec3::Z, 2.5));
+        assert!(!intersect_all_occluded(&mesh, Vec3::ZERO, Vec3::Z, 2.0));
+    }
 }

@@ -1,127 +1,252 @@
-//! PLACEHOLDER until the kD tree lands: a brute-force stand-in with the kD tree's API.
+//! kD tree over a [`TriangleMesh`]: the accelerator of the kD-intersect stage.
+//!
+//! Split like Embree/obvhs: [`node`] (8-byte node layout), `build_midpoint` (the assignment's
+//! longest-axis midpoint rule), `build_sah` (Wald & Havran 2006, O(N log N), the default),
+//! `traverse` (closest and occluded queries), `text` (the SPEC §6 text format), `validate` and
+//! `stats`. The tree reads mesh vertices and triangle indices; queries read one ray (origin,
+//! unnormalised direction, `t_max`) and write a [`TriHit`] or a shadow bit.
+//!
+//! Tree layout: nodes in depth-first pre-order (left child = next node, right child stored in
+//! the node), leaves referring to a contiguous run of a triangle-index list. Degenerate
+//! triangles ([`TriangleMesh::is_degenerate`]) are left out of every tree, so they are never
+//! hit. The tree keeps its own copy of the triangle vertices in leaf order (built on first use
+//! for trees read from text), so traversal touches one contiguous array.
 
-use std::io::{BufRead, Write};
-use std::path::{Path, PathBuf};
+mod build_midpoint;
+mod build_sah;
+pub mod node;
+mod overlap;
+mod stats;
+mod text;
+mod traverse;
+mod validate;
+
+use std::sync::OnceLock;
 
 use glam::Vec3;
 
-use crate::geometry::triangle::intersect_moller_trumbore;
 use crate::mesh::TriangleMesh;
+pub use node::KdNode;
+use overlap::Aabb;
+pub use stats::KdStats;
+pub use text::TreeError;
+
+/// Deepest tree the builders produce.
+pub const MAX_BUILD_DEPTH: usize = 40;
+/// Deepest tree accepted from a file (traversal's fixed stack holds one entry per level).
+pub const MAX_DEPTH: usize = 63;
+/// SAH cost of one traversal step.
+pub const COST_TRAVERSAL: f32 = 1.0;
+/// SAH cost of one ray/triangle test.
+pub const COST_INTERSECT: f32 = 1.5;
 
 /// How to build a tree.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BuildMethod {
-    /// The assignment's midpoint rule.
+    /// The assignment's rule: split the longest axis at its midpoint.
     Midpoint,
-    /// Surface area heuristic.
+    /// Surface-area heuristic (Wald & Havran 2006); the default.
+    #[default]
     Sah,
 }
 
-/// A triangle hit.
+/// Closest hit of a ray: distance `t` (in units of the direction's length) and triangle index.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriHit {
-    /// Ray parameter.
+    /// Ray parameter of the hit, `0 < t < t_max`.
     pub t: f32,
-    /// Triangle index.
+    /// Index of the triangle hit (its face number in the OBJ file).
     pub tri: u32,
 }
 
-/// A tree file that cannot be read.
-#[derive(Debug, thiserror::Error)]
-pub enum TreeError {
-    /// Anything.
-    #[error("{}:{line}: {message}", file.display())]
-    Parse {
-        /// File.
-        file: PathBuf,
-        /// Line.
-        line: usize,
-        /// Message.
-        message: String,
+/// A kD tree over a triangle mesh. See the module docs for the layout.
+#[derive(Clone, Debug)]
+pub struct KdTree {
+    /// Nodes in depth-first pre-order; node 0 is the root.
+    pub(crate) nodes: Vec<KdNode>,
+    /// Triangle indices of all leaves, leaf after leaf.
+    pub(crate) tri_indices: Vec<u32>,
+    /// Root box: the mesh bounds for built trees, the file's root box for trees read from text.
+    pub(crate) root: Aabb,
+    /// Number of triangles of the mesh the tree refers to (bound on every index).
+    pub(crate) triangle_count: usize,
+    /// Per-mesh data cached for traversal (exact root box and vertices in leaf order).
+    pub(crate) prepared: OnceLock<Prepared>,
+}
+
+/// Data cached for traversal, derived from the tree and the mesh.
+#[derive(Clone, Debug)]
+pub(crate) struct Prepared {
+    /// Exact root box used by traversal: mesh bounds joined with the stored root box.
+    pub(crate) root: Aabb,
+    /// Vertices of `tri_indices[i]` at index `i`: leaf order, for cache locality.
+    pub(crate) tris: Vec<[[f32; 3]; 3]>,
+    /// Vertex count of the mesh this was built for (debug check against misuse).
+    pub(crate) vertex_count: usize,
+}
+
+impl PartialEq for KdTree {
+    /// Same nodes, same triangle lists, same root box (cached data is ignored).
+    fn eq(&self, other: &KdTree) -> bool {
+        self.nodes == other.nodes
+            && self.tri_indices == other.tri_indices
+            && self.root == other.root
+            && self.triangle_count == other.triangle_count
+    }
+}
+
+/// Builder output before flattening into [`KdNode`]s.
+pub(crate) enum BuildNode {
+    /// Leaf with its triangle indices.
+    Leaf(Vec<u32>),
+    /// Inner node.
+    Inner {
+        axis: usize,
+        split: f32,
+        left: Box<BuildNode>,
+        right: Box<BuildNode>,
     },
 }
 
-/// Tree statistics.
-#[derive(Clone, Debug, Default)]
-pub struct KdStats {
-    /// Nodes.
-    pub nodes: usize,
-}
-
-impl std::fmt::Display for KdStats {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "nodes {}", self.nodes)
-    }
-}
-
-/// Placeholder tree.
-#[derive(Clone, Debug, PartialEq)]
-pub struct KdTree {
-    n: usize,
-}
-
 impl KdTree {
-    /// Builds.
-    pub fn build(mesh: &TriangleMesh, _method: BuildMethod) -> KdTree {
-        KdTree { n: mesh.len() }
+    /// Builds a tree over `mesh` (rayon splits the upper levels across threads; the result does
+    /// not depend on the thread count).
+    pub fn build(mesh: &TriangleMesh, method: BuildMethod) -> KdTree {
+        let (lo, hi) = mesh.bounds();
+        let root: Aabb = (lo.to_array(), hi.to_array());
+        let tris: Vec<u32> = (0..mesh.len())
+            .filter(|&k| !mesh.is_degenerate(k))
+            .map(|k| k as u32)
+            .collect();
+        let tree = match method {
+            BuildMethod::Midpoint => build_midpoint::build(mesh, root, tris),
+            BuildMethod::Sah => build_sah::build(mesh, root, tris),
+        };
+        let mut out = KdTree::from_build(&tree, root, mesh.len());
+        out.prepared = OnceLock::from(Prepared::new(&out, mesh));
+        out
     }
-    /// Closest hit.
-    pub fn intersect_closest(
-        &self,
-        mesh: &TriangleMesh,
-        origin: Vec3,
-        dir: Vec3,
-        t_max: f32,
-    ) -> Option<TriHit> {
-        let mut best: Option<TriHit> = None;
-        let mut tm = t_max;
-        for k in 0..self.n {
-            if let Some(t) = intersect_moller_trumbore(origin, dir, mesh.triangle(k), tm) {
-                tm = t;
-                best = Some(TriHit { t, tri: k as u32 });
+
+    /// Flattens a builder tree into pre-order nodes.
+    pub(crate) fn from_build(tree: &BuildNode, root: Aabb, triangle_count: usize) -> KdTree {
+        let mut nodes = Vec::new();
+        let mut tri_indices = Vec::new();
+        // Explicit stack: (node, index of the parent whose right link must be patched).
+        let mut stack: Vec<(&BuildNode, Option<usize>)> = vec![(tree, None)];
+        while let Some((n, patch)) = stack.pop() {
+            let here = nodes.len();
+            if let Some(p) = patch {
+                let parent: KdNode = nodes[p];
+                nodes[p] = KdNode::inner(parent.axis(), parent.split(), here as u32);
+            }
+            match n {
+                BuildNode::Leaf(tris) => {
+                    nodes.push(KdNode::leaf(tri_indices.len() as u32, tris.len() as u32));
+                    tri_indices.extend_from_slice(tris);
+                }
+                BuildNode::Inner {
+                    axis,
+                    split,
+                    left,
+                    right,
+                } => {
+                    nodes.push(KdNode::inner(*axis, *split, 0));
+                    stack.push((right, Some(here)));
+                    stack.push((left, None));
+                }
             }
         }
-        best
+        KdTree {
+            nodes,
+            tri_indices,
+            root,
+            triangle_count,
+            prepared: OnceLock::new(),
+        }
     }
-    /// Any hit.
-    pub fn intersect_occluded(
-        &self,
-        mesh: &TriangleMesh,
-        origin: Vec3,
-        dir: Vec3,
-        t_max: f32,
-    ) -> bool {
-        (0..self.n)
-            .any(|k| intersect_moller_trumbore(origin, dir, mesh.triangle(k), t_max).is_some())
+
+    /// Root box `(min, max)`: the mesh bounds for built trees; for trees read from text, the
+    /// file's root box (traversal and `validate` join it with the exact mesh bounds).
+    pub fn bounds(&self) -> (Vec3, Vec3) {
+        (Vec3::from_array(self.root.0), Vec3::from_array(self.root.1))
     }
-    /// Validates.
-    pub fn validate(&self, _mesh: &TriangleMesh) -> Result<(), String> {
-        Ok(())
+
+    /// The nodes in pre-order (node 0 is the root).
+    pub fn nodes(&self) -> &[KdNode] {
+        &self.nodes
     }
-    /// Stats.
-    pub fn stats(&self, _mesh: &TriangleMesh) -> KdStats {
-        KdStats { nodes: 1 }
+
+    /// Triangle indices of the leaf `node` (empty for inner nodes).
+    pub fn leaf_triangles(&self, node: usize) -> &[u32] {
+        let n = self.nodes[node];
+        if !n.is_leaf() {
+            return &[];
+        }
+        let start = n.offset() as usize;
+        &self.tri_indices[start..start + n.count() as usize]
     }
-    /// Reads.
-    pub fn read_text(
-        _reader: impl BufRead,
-        source: &Path,
-        triangle_count: usize,
-    ) -> Result<KdTree, TreeError> {
-        let _ = source;
-        Ok(KdTree { n: triangle_count })
+
+    /// Traversal data for `mesh`, built on first use.
+    #[inline]
+    pub(crate) fn prepared(&self, mesh: &TriangleMesh) -> &Prepared {
+        let p = self.prepared.get_or_init(|| Prepared::new(self, mesh));
+        debug_assert_eq!(
+            p.vertex_count,
+            mesh.vertices.len(),
+            "tree used with another mesh"
+        );
+        p
     }
-    /// Loads.
-    pub fn load_text(path: &Path, triangle_count: usize) -> Result<KdTree, TreeError> {
-        let f = std::fs::File::open(path).map_err(|e| TreeError::Parse {
-            file: path.into(),
-            line: 0,
-            message: e.to_string(),
-        })?;
-        Self::read_text(std::io::BufReader::new(f), path, triangle_count)
+}
+
+/// Root box used for traversal and validation: the stored root box joined with the mesh bounds.
+pub(crate) fn exact_root(tree: &KdTree, mesh: &TriangleMesh) -> Aabb {
+    let (lo, hi) = mesh.bounds();
+    let mut r = tree.root;
+    for k in 0..3 {
+        r.0[k] = r.0[k].min(lo[k]);
+        r.1[k] = r.1[k].max(hi[k]);
     }
-    /// Writes.
-    pub fn write_text(&self, _w: impl Write) -> std::io::Result<()> {
-        Ok(())
+    r
+}
+
+impl Prepared {
+    fn new(tree: &KdTree, mesh: &TriangleMesh) -> Prepared {
+        let tris = tree
+            .tri_indices
+            .iter()
+            .map(|&k| {
+                let idx = mesh.indices.get(k as usize).copied().unwrap_or([0; 3]);
+                idx.map(|i| mesh.vertices.get(i as usize).copied().unwrap_or([0.0; 3]))
+            })
+            .collect();
+        Prepared {
+            root: exact_root(tree, mesh),
+            tris,
+            vertex_count: mesh.vertices.len(),
+        }
     }
+}
+
+/// The two children boxes of `bx` split on `axis` at `split`.
+#[inline]
+pub(crate) fn split_box(bx: &Aabb, axis: usize, split: f32) -> (Aabb, Aabb) {
+    let mut l = *bx;
+    let mut r = *bx;
+    l.1[axis] = split;
+    r.0[axis] = split;
+    (l, r)
+}
+
+/// Surface area of a box.
+#[inline]
+pub(crate) fn area(bx: &Aabb) -> f32 {
+    let d = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
+    2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+}
+
+/// Vertices of triangle `k` as arrays.
+#[inline]
+pub(crate) fn tri_verts(mesh: &TriangleMesh, k: u32) -> [[f32; 3]; 3] {
+    mesh.indices[k as usize].map(|i| mesh.vertices[i as usize])
 }

@@ -1,0 +1,154 @@
+//! Exact-ish triangle/box geometry shared by the builders and `validate()`: the separating-axis
+//! overlap test (Akenine-Möller) and triangle clipping to a box, both in `f64`.
+//!
+//! Boxes are closed: a triangle touching a box face counts as overlapping it.
+
+use glam::DVec3;
+
+/// Axis-aligned box `[lo, hi]` (closed) in `f32`.
+pub type Aabb = ([f32; 3], [f32; 3]);
+
+/// Separating-axis triangle/box overlap test (13 axes), evaluated in `f64` on the `f32` inputs.
+/// Touching counts as overlap.
+pub fn tri_box_overlap(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
+    let (lo, hi) = bx;
+    for a in 0..3 {
+        let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
+        let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
+        if mn > hi[a] || mx < lo[a] {
+            return false;
+        }
+    }
+    let lo = DVec3::new(lo[0] as f64, lo[1] as f64, lo[2] as f64);
+    let hi = DVec3::new(hi[0] as f64, hi[1] as f64, hi[2] as f64);
+    let c = (lo + hi) * 0.5;
+    let h = (hi - lo) * 0.5;
+    let v = tri.map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) - c);
+    let e = [v[1] - v[0], v[2] - v[1], v[0] - v[2]];
+    let separated = |n: DVec3| {
+        let p0 = n.dot(v[0]);
+        let p1 = n.dot(v[1]);
+        let p2 = n.dot(v[2]);
+        let r = h.x * n.x.abs() + h.y * n.y.abs() + h.z * n.z.abs();
+        p0.min(p1).min(p2) > r || p0.max(p1).max(p2) < -r
+    };
+    for edge in e {
+        for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
+            let n = edge.cross(axis);
+            if n != DVec3::ZERO && separated(n) {
+                return false;
+            }
+        }
+    }
+    let n = e[0].cross(e[1]);
+    !(n != DVec3::ZERO && separated(n))
+}
+
+/// Clips triangle `tri` to the closed box `bx` (Sutherland–Hodgman in `f64`) and returns the
+/// bounds of the clipped polygon, rounded outward to `f32` and clamped to the box, or `None`
+/// when nothing of the triangle lies in the box.
+pub fn clip_bounds(tri: &[[f32; 3]; 3], bx: &Aabb) -> Option<Aabb> {
+    let mut poly = [[0.0f64; 3]; 12];
+    let mut n = 3;
+    for (i, p) in tri.iter().enumerate() {
+        poly[i] = [p[0] as f64, p[1] as f64, p[2] as f64];
+    }
+    let mut tmp = [[0.0f64; 3]; 12];
+    for a in 0..3 {
+        for side in 0..2 {
+            let plane = if side == 0 { bx.0[a] } else { bx.1[a] } as f64;
+            let inside = |p: &[f64; 3]| {
+                if side == 0 {
+                    p[a] >= plane
+                } else {
+                    p[a] <= plane
+                }
+            };
+            if poly[..n].iter().all(inside) {
+                continue; // this plane cuts nothing off
+            }
+            let mut m = 0;
+            for i in 0..n {
+                let p = poly[i];
+                let q = poly[(i + 1) % n];
+                let (pin, qin) = (inside(&p), inside(&q));
+                if pin {
+                    tmp[m] = p;
+                    m += 1;
+                }
+                if pin != qin && m < tmp.len() {
+                    let t = (plane - p[a]) / (q[a] - p[a]);
+                    let mut x = [0.0; 3];
+                    for k in 0..3 {
+                        x[k] = p[k] + (q[k] - p[k]) * t;
+                    }
+                    x[a] = plane;
+                    tmp[m] = x;
+                    m += 1;
+                }
+            }
+            n = m;
+            poly[..n].copy_from_slice(&tmp[..n]);
+            if n == 0 {
+                return None;
+            }
+        }
+    }
+    let mut lo = [f32::INFINITY; 3];
+    let mut hi = [f32::NEG_INFINITY; 3];
+    for p in &poly[..n] {
+        for k in 0..3 {
+            lo[k] = lo[k].min(round_down(p[k]));
+            hi[k] = hi[k].max(round_up(p[k]));
+        }
+    }
+    for k in 0..3 {
+        lo[k] = lo[k].max(bx.0[k]);
+        hi[k] = hi[k].min(bx.1[k]);
+        if lo[k] > hi[k] {
+            return None;
+        }
+    }
+    Some((lo, hi))
+}
+
+/// Largest `f32` not above `x`.
+fn round_down(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) > x { f.next_down() } else { f }
+}
+
+/// Smallest `f32` not below `x`.
+fn round_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x { f.next_up() } else { f }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const UNIT: Aabb = ([0.0; 3], [1.0; 3]);
+
+    #[test]
+    fn overlap_detects_touching_inside_and_separated() {
+        let inside = [[0.2, 0.2, 0.2], [0.8, 0.2, 0.2], [0.2, 0.8, 0.2]];
+        assert!(tri_box_overlap(&inside, &UNIT));
+        let touching = [[1.0, 0.0, 0.0], [2.0, 0.0, 0.0], [1.0, 1.0, 0.0]];
+        assert!(tri_box_overlap(&touching, &UNIT));
+        // Bounding boxes overlap but the triangle passes beside the corner.
+        let diagonal = [[1.5, 0.0, 0.5], [0.0, 1.5, 0.5], [1.5, 1.5, 0.5]];
+        assert!(tri_box_overlap(&diagonal, &UNIT));
+        let beside = [[2.1, 0.0, 0.5], [0.0, 2.1, 0.5], [2.1, 2.1, 0.5]];
+        assert!(!tri_box_overlap(&beside, &UNIT));
+    }
+
+    #[test]
+    fn clipping_shrinks_bounds_to_the_box() {
+        let big = [[-1.0, -1.0, 0.5], [3.0, -1.0, 0.5], [-1.0, 3.0, 0.5]];
+        let b = clip_bounds(&big, &UNIT).expect("overlaps");
+        assert_eq!(b, ([0.0, 0.0, 0.5], [1.0, 1.0, 0.5]));
+        let far = [[5.0, 5.0, 5.0], [6.0, 5.0, 5.0], [5.0, 6.0, 5.0]];
+        assert_eq!(clip_bounds(&far, &UNIT), None);
+    }
+}

@@ -1,0 +1,184 @@
+//! `validate()`: structural and geometric checks of a kD tree against its mesh.
+//!
+//! Checks that every node and child index is in range, that the tree is a proper pre-order tree
+//! within the depth limit, that children partition the parent's box at the split (the split lies
+//! inside the parent's box, closed), that every triangle index is in range, and that every
+//! non-degenerate triangle overlapping a leaf's box (by the closed triangle/box test) is listed
+//! in that leaf. Degenerate triangles are never hit, so they need not be listed.
+
+use super::overlap::{Aabb, tri_box_overlap};
+use super::{KdTree, MAX_DEPTH, exact_root, split_box, tri_verts};
+use crate::mesh::TriangleMesh;
+
+impl KdTree {
+    /// Checks the tree against `mesh`; the error names the first problem found.
+    pub fn validate(&self, mesh: &TriangleMesh) -> Result<(), String> {
+        if self.triangle_count != mesh.len() {
+            return Err(format!(
+                "tree built for {} triangles, mesh has {}",
+                self.triangle_count,
+                mesh.len()
+            ));
+        }
+        if self.nodes.is_empty() {
+            return Err("tree has no nodes".to_string());
+        }
+        if let Some(&t) = self.tri_indices.iter().find(|&&t| t as usize >= mesh.len()) {
+            return Err(format!("triangle index {t} out of range ({})", mesh.len()));
+        }
+        let candidates: Vec<u32> = (0..mesh.len() as u32)
+            .filter(|&k| !mesh.is_degenerate(k as usize))
+            .collect();
+        let root = exact_root(self, mesh);
+        let mut seen = 0usize;
+        self.check(mesh, 0, root, candidates, 0, &mut seen)?;
+        if seen != self.nodes.len() {
+            return Err(format!(
+                "{} nodes, only {} reachable from the root",
+                self.nodes.len(),
+                seen
+            ));
+        }
+        Ok(())
+    }
+
+    fn check(
+        &self,
+        mesh: &TriangleMesh,
+        i: usize,
+        bx: Aabb,
+        candidates: Vec<u32>,
+        depth: usize,
+        seen: &mut usize,
+    ) -> Result<(), String> {
+        if depth > MAX_DEPTH {
+            return Err(format!("node {i} deeper than {MAX_DEPTH}"));
+        }
+        let Some(&n) = self.nodes.get(i) else {
+            return Err(format!("node index {i} out of range"));
+        };
+        *seen += 1;
+        if n.is_leaf() {
+            let start = n.offset() as usize;
+            let end = start + n.count() as usize;
+            let Some(listed) = self.tri_indices.get(start..end) else {
+                return Err(format!(
+                    "leaf {i}: triangle range {start}..{end} out of range"
+                ));
+            };
+            let mut listed = listed.to_vec();
+            listed.sort_unstable();
+            for t in candidates {
+                if listed.binary_search(&t).is_err() {
+                    return Err(format!(
+                        "leaf {i} (box {:?}..{:?}) misses triangle {t} which overlaps it",
+                        bx.0, bx.1
+                    ));
+                }
+            }
+            return Ok(());
+        }
+        let (axis, split) = (n.axis(), n.split());
+        if !(split >= bx.0[axis] && split <= bx.1[axis]) {
+            return Err(format!(
+                "node {i}: split {split} on axis {axis} outside its box {:?}..{:?}",
+                bx.0, bx.1
+            ));
+        }
+        let right = n.right() as usize;
+        if right <= i + 1 || right >= self.nodes.len() {
+            return Err(format!(
+                "node {i}: right child {right} out of order or range"
+            ));
+        }
+        let (lb, rb) = split_box(&bx, axis, split);
+        let (mut l, mut r) = (Vec::new(), Vec::new());
+        for t in candidates {
+            let v = tri_verts(mesh, t);
+            if tri_box_overlap(&v, &lb) {
+                l.push(t);
+            }
+            if tri_box_overlap(&v, &rb) {
+                r.push(t);
+            }
+        }
+        let mut seen_l = 0;
+        let mut seen_r = 0;
+        let (a, b) = if l.len() + r.len() > 4096 {
+            rayon::join(
+                || self.check(mesh, i + 1, lb, l, depth + 1, &mut seen_l),
+                || self.check(mesh, right, rb, r, depth + 1, &mut seen_r),
+            )
+        } else {
+            (
+                self.check(mesh, i + 1, lb, l, depth + 1, &mut seen_l),
+                self.check(mesh, right, rb, r, depth + 1, &mut seen_r),
+            )
+        };
+        a?;
+        b?;
+        // In pre-order the right subtree starts right after the left one.
+        if right != i + 1 + seen_l {
+            return Err(format!(
+                "node {i}: right child {right} does not follow its left subtree"
+            ));
+        }
+        *seen += seen_l + seen_r;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use crate::accel::kdtree::{BuildMethod, KdTree};
+    use crate::mesh::TriangleMesh;
+
+    fn mesh() -> TriangleMesh {
+        TriangleMesh::new(
+            vec![
+                [0.0, 0.0, 0.0],
+                [1.0, 0.0, 0.0],
+                [0.0, 1.0, 0.0],
+                [3.0, 0.0, 0.0],
+                [4.0, 0.0, 0.0],
+                [4.0, 1.0, 1.0],
+            ],
+            vec![[0, 1, 2], [3, 4, 5]],
+        )
+    }
+
+    #[test]
+    fn built_trees_are_valid() {
+        let m = mesh();
+        for method in [BuildMethod::Midpoint, BuildMethod::Sah] {
+            KdTree::build(&m, method).validate(&m).expect("valid");
+        }
+    }
+
+    #[test]
+    fn a_leaf_missing_an_overlapping_triangle_is_reported() {
+        let text =
+            "inner{ 0 0 0 4 1 1 ; 1 2 0 2 }\nleaf{ 0 0 0 2 1 1 ; }\nleaf{ 2 0 0 4 1 1 ; 1 }\n";
+        let tree = KdTree::read_text(text.as_bytes(), Path::new("v.kd"), 2).expect("read");
+        let err = tree.validate(&mesh()).expect_err("triangle 0 missing");
+        assert!(err.contains("misses triangle 0"), "{err}");
+    }
+
+    #[test]
+    fn a_split_outside_the_box_is_reported() {
+        let text =
+            "inner{ 0 0 0 4 1 1 ; 1 2 0 7 }\nleaf{ 0 0 0 2 1 1 ; 0 1 }\nleaf{ 2 0 0 4 1 1 ; }\n";
+        let tree = KdTree::read_text(text.as_bytes(), Path::new("v.kd"), 2).expect("read");
+        let err = tree.validate(&mesh()).expect_err("split outside");
+        assert!(err.contains("outside its box"), "{err}");
+    }
+
+    #[test]
+    fn a_tree_for_another_mesh_is_reported() {
+        let tree = KdTree::build(&mesh(), BuildMethod::Sah);
+        let other = TriangleMesh::new(vec![[0.0; 3]; 3], vec![[0, 1, 2]]);
+        assert!(tree.validate(&other).is_err());
+    }
+}

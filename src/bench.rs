@@ -1,0 +1,934 @@
+//! Stage benchmarks (`wavefront bench`, `benches/stages.rs`): each kernel timed alone on a
+//! snapshot of its input queue taken from a real render.
+//!
+//! Reads: a [`Scene`] and its [`World`]. Writes: a [`Snapshot`] (copies of the first wave's
+//! queues, depth by depth: `RayQueue` for `intersect`, `HitQueue` for `shade` and `reflect`,
+//! `ShadowQueue` for `shadow`) and a [`Report`] of [`Record`]s (stage, depth, rays, seconds).
+//!
+//! [`Snapshot::capture`] runs the stages by hand for the first wave exactly as
+//! [`crate::schedule::render`] orders them — generate, then per depth intersect → shade → shadow →
+//! reflect — keeping a copy of each stage's input. [`StageBench::run`] then runs one kernel on its
+//! snapshot; the CLI takes the best of R runs after one warm-up, criterion does its own sampling.
+//! With the `embree` feature, [`run`] also traces the same intersect and shadow ray arrays with the
+//! Embree peer ([`crate::peer::embree`]) and reports project/Embree throughput ratios.
+
+use std::fmt;
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::LoadError;
+use crate::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
+use crate::scene::Scene;
+use crate::schedule::{Pipeline, RenderOptions, render};
+use crate::stages::Stage;
+use crate::stages::generate::{Wave, generate_camera_rays};
+use crate::stages::intersect::{compact_hits, intersect_closest};
+use crate::stages::reflect::spawn_reflection_rays;
+use crate::stages::shade::{ShadeScratch, shade_hit_mask, shade_hits};
+use crate::stages::shadow::intersect_occluded;
+use crate::world::World;
+
+/// The queues one depth of the first wave read, as the schedule produced them.
+#[derive(Clone, Debug)]
+pub struct DepthSnapshot {
+    /// The bounce counter.
+    pub depth: u32,
+    /// Input of `intersect`: this depth's rays.
+    pub rays: RayQueue,
+    /// What `intersect_closest` returned for `rays` (one row per ray), kept to check peers.
+    pub closest: HitColumns,
+    /// Input of `shade` and `reflect`: the compacted hits, with the surface columns shade wrote.
+    /// Shade rewrites `point`, `normal` and `material` with the same values, so one copy serves
+    /// both stages.
+    pub hits: HitQueue,
+    /// Input of `shadow`; `None` when this depth runs no shadow stage.
+    pub shadows: Option<ShadowQueue>,
+    /// What `intersect_occluded` returned for `shadows` (empty without shadows).
+    pub occluded: Vec<bool>,
+    /// Whether this depth runs `reflect`.
+    pub reflect: bool,
+}
+
+/// Every stage input of a scene's first wave.
+#[derive(Clone, Debug)]
+pub struct Snapshot {
+    /// The scene's pipeline.
+    pub pipeline: Pipeline,
+    /// The first wave (input of `generate`).
+    pub wave: Wave,
+    /// Number of waves a full frame renders (the snapshot covers the first only).
+    pub waves: u32,
+    /// One entry per depth that had rays, in depth order.
+    pub depths: Vec<DepthSnapshot>,
+}
+
+impl Snapshot {
+    /// Renders the first wave of `scene` stage by stage, in schedule order, keeping each stage's
+    /// input. Runs on the current rayon pool.
+    pub fn capture(scene: &Scene, world: &World) -> Snapshot {
+        let pipeline = Pipeline::for_scene(scene);
+        let image = &scene.image;
+        let spp = image.samples.max(1);
+        let total = image.width * image.height;
+        let options = RenderOptions::default();
+        let pixels_per_wave =
+            ((options.wave_samples / spp as usize).max(1)).min(total as usize) as u32;
+        let wave = Wave {
+            first_pixel: 0,
+            pixels: pixels_per_wave.min(total),
+            samples: spp,
+        };
+        let offset = scene.render.robustness.offset;
+
+        let mut rays = RayQueue::default();
+        let mut closest = HitColumns::default();
+        let mut rows = vec![];
+        let mut emitted = vec![];
+        let mut scratch = ShadeScratch::default();
+        let mut depths = vec![];
+
+        // depth 0: generate
+        generate_camera_rays(&scene.camera, image, &wave, &mut rays);
+        for plan in &pipeline.depths {
+            if rays.is_empty() {
+                break;
+            }
+            // intersect
+            let mut hits = HitQueue::default();
+            intersect_closest(world, &rays, &mut closest);
+            compact_hits(&rays, &closest, &mut rows, &mut hits);
+            // shade
+            let mut shadows = ShadowQueue::default();
+            if pipeline.mask {
+                shade_hit_mask(&hits, &mut emitted);
+            } else {
+                shade_hits(
+                    world,
+                    &pipeline.shade,
+                    &mut hits,
+                    &mut emitted,
+                    &mut scratch,
+                    &mut shadows,
+                );
+            }
+            // shadow
+            let mut occluded = vec![];
+            let shadows = plan.stages.contains(&Stage::Shadow).then(|| {
+                intersect_occluded(world, &shadows, &mut occluded);
+                shadows
+            });
+            // reflect
+            let reflect = plan.stages.contains(&Stage::Reflect);
+            let mut next = RayQueue::default();
+            if reflect {
+                spawn_reflection_rays(world, offset, &hits, &mut rows, &mut next);
+            }
+            depths.push(DepthSnapshot {
+                depth: plan.depth,
+                rays: std::mem::replace(&mut rays, next),
+                closest: closest.clone(),
+                hits,
+                shadows,
+                occluded,
+                reflect,
+            });
+            if !reflect {
+                break;
+            }
+        }
+        Snapshot {
+            pipeline,
+            wave,
+            waves: total.div_ceil(wave.pixels.max(1)),
+            depths,
+        }
+    }
+
+    /// The snapshot of `depth`, if that depth had rays.
+    pub fn depth(&self, depth: u32) -> Option<&DepthSnapshot> {
+        self.depths.iter().find(|d| d.depth == depth)
+    }
+
+    /// Every (stage, depth) the first wave ran, in schedule order.
+    pub fn entries(&self) -> Vec<(Stage, u32)> {
+        let mut out = vec![(Stage::Generate, 0)];
+        for d in &self.depths {
+            out.push((Stage::Intersect, d.depth));
+            out.push((Stage::Shade, d.depth));
+            if d.shadows.is_some() {
+                out.push((Stage::Shadow, d.depth));
+            }
+            if d.reflect {
+                out.push((Stage::Reflect, d.depth));
+            }
+        }
+        out
+    }
+
+    /// Rays one run of `stage` at `depth` handles: rays written by `generate`, rays read by the
+    /// others (the figure `--stats` divides by). `None` when the first wave did not run it.
+    pub fn rays(&self, stage: Stage, depth: u32) -> Option<usize> {
+        if stage == Stage::Generate {
+            return (depth == 0).then_some(self.wave.len());
+        }
+        let d = self.depth(depth)?;
+        match stage {
+            Stage::Generate => unreachable!(),
+            Stage::Intersect => Some(d.rays.len()),
+            Stage::Shade => Some(d.hits.len()),
+            Stage::Shadow => d.shadows.as_ref().map(ShadowQueue::len),
+            Stage::Reflect => d.reflect.then_some(d.hits.len()),
+        }
+    }
+}
+
+/// Outputs the timed kernels write into, reused across runs so they allocate only once.
+#[derive(Debug, Default)]
+struct Outputs {
+    rays: RayQueue,
+    closest: HitColumns,
+    rows: Vec<u32>,
+    compacted: HitQueue,
+    /// Shade's working copy of each depth's hits (shade rewrites their surface columns).
+    hits: Vec<HitQueue>,
+    emitted: Vec<glam::Vec3>,
+    shade: ShadeScratch,
+    shadows: ShadowQueue,
+    occluded: Vec<bool>,
+    next: RayQueue,
+}
+
+/// Runs single kernels on a scene's [`Snapshot`]: the shared core of `wavefront bench` and the
+/// criterion benches.
+#[derive(Debug)]
+pub struct StageBench<'a> {
+    scene: &'a Scene,
+    world: &'a World,
+    /// The stage inputs.
+    pub snapshot: Snapshot,
+    out: Outputs,
+}
+
+impl<'a> StageBench<'a> {
+    /// Captures the snapshot of `scene` (on the current rayon pool).
+    pub fn new(scene: &'a Scene, world: &'a World) -> StageBench<'a> {
+        let snapshot = Snapshot::capture(scene, world);
+        let out = Outputs {
+            hits: snapshot.depths.iter().map(|d| d.hits.clone()).collect(),
+            ..Outputs::default()
+        };
+        StageBench {
+            scene,
+            world,
+            snapshot,
+            out,
+        }
+    }
+
+    /// Runs `stage`'s kernel once on its snapshot at `depth` and returns the rays it handled (see
+    /// [`Snapshot::rays`]). `intersect` is the closest-hit kernel alone, `shadow` the occlusion
+    /// kernel alone. Panics when the first wave did not run `stage` at `depth`.
+    pub fn run(&mut self, stage: Stage, depth: u32) -> usize {
+        let rays = self
+            .snapshot
+            .rays(stage, depth)
+            .unwrap_or_else(|| panic!("the first wave runs no {stage} at depth {depth}"));
+        let (world, out) = (self.world, &mut self.out);
+        let i = self.snapshot.depths.iter().position(|d| d.depth == depth);
+        let snap = i.map(|i| &self.snapshot.depths[i]);
+        match stage {
+            Stage::Generate => generate_camera_rays(
+                &self.scene.camera,
+                &self.scene.image,
+                &self.snapshot.wave,
+                &mut out.rays,
+            ),
+            Stage::Intersect => intersect_closest(world, &snap.unwrap().rays, &mut out.closest),
+            Stage::Shade if self.snapshot.pipeline.mask => {
+                shade_hit_mask(&snap.unwrap().hits, &mut out.emitted)
+            }
+            Stage::Shade => shade_hits(
+                world,
+                &self.snapshot.pipeline.shade,
+                &mut out.hits[i.unwrap()],
+                &mut out.emitted,
+                &mut out.shade,
+                &mut out.shadows,
+            ),
+            Stage::Shadow => intersect_occluded(
+                world,
+                snap.unwrap().shadows.as_ref().unwrap(),
+                &mut out.occluded,
+            ),
+            Stage::Reflect => spawn_reflection_rays(
+                world,
+                self.scene.render.robustness.offset,
+                &snap.unwrap().hits,
+                &mut out.rows,
+                &mut out.next,
+            ),
+        }
+        rays
+    }
+
+    /// Runs the intersect stage's compaction (`compact_hits`) once on the snapshot at `depth`.
+    pub fn run_compaction(&mut self, depth: u32) -> usize {
+        let d = self
+            .snapshot
+            .depth(depth)
+            .unwrap_or_else(|| panic!("the first wave has no depth {depth}"));
+        compact_hits(
+            &d.rays,
+            &d.closest,
+            &mut self.out.rows,
+            &mut self.out.compacted,
+        );
+        d.rays.len()
+    }
+}
+
+/// Seconds of the fastest of `repeat` runs (at least one) of `f`, after one untimed warm-up.
+pub fn best_of(repeat: usize, mut f: impl FnMut()) -> f64 {
+    f();
+    (0..repeat.max(1))
+        .map(|_| seconds(&mut f))
+        .fold(f64::INFINITY, f64::min)
+}
+
+/// Median seconds of `repeat` runs (at least one) of `f`, without warm-up.
+pub fn median_of(repeat: usize, mut f: impl FnMut()) -> f64 {
+    let mut t: Vec<f64> = (0..repeat.max(1)).map(|_| seconds(&mut f)).collect();
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
+}
+
+fn seconds(f: &mut impl FnMut()) -> f64 {
+    let start = Instant::now();
+    f();
+    start.elapsed().as_secs_f64()
+}
+
+/// Millions of rays per second.
+pub fn mrays_per_s(rays: usize, seconds: f64) -> f64 {
+    if seconds > 0.0 {
+        rays as f64 / seconds / 1e6
+    } else {
+        0.0
+    }
+}
+
+/// One stage (or peer) measurement: one JSON line of `wavefront bench --json`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Record {
+    /// Scene name.
+    pub scene: String,
+    /// Stage label (`generate`, `intersect`, `shade`, `shadow`, `reflect`).
+    pub stage: String,
+    /// The bounce counter.
+    pub depth: u32,
+    /// Worker threads.
+    pub threads: usize,
+    /// Rays handled (written by `generate`, read by the others).
+    pub rays: usize,
+    /// Best time of the kernel alone.
+    pub seconds: f64,
+    /// `rays / seconds`, in millions.
+    pub mrays_per_s: f64,
+    /// `intersect` only: best time of the compaction that follows the closest-hit kernel.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub compact_seconds: Option<f64>,
+    /// Peer rows: which peer traced the same rays (e.g. `embree-intersect1`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub peer: Option<String>,
+    /// Peer rows: project Mrays/s ÷ peer Mrays/s (above 1: the project is faster).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ratio: Option<f64>,
+    /// Peer closest-hit rows: rays whose triangle differs from the project's beyond an exact tie
+    /// (`t` differs by more than 1e-5 relative, or one side misses).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub mismatches: Option<usize>,
+    /// Peer closest-hit rows: the mismatches where one side hits and the other misses.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub hit_miss: Option<usize>,
+    /// Peer closest-hit rows: rays whose triangle differs at the same `t` (exact ties).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ties: Option<usize>,
+    /// Peer occlusion rows: rays the peer found occluded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluded: Option<usize>,
+    /// Peer occlusion rows: rays the project found occluded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub occluded_project: Option<usize>,
+}
+
+impl Record {
+    fn new(scene: &str, stage: Stage, depth: u32, threads: usize, rays: usize, s: f64) -> Record {
+        Record {
+            scene: scene.to_owned(),
+            stage: stage.label().to_owned(),
+            depth,
+            threads,
+            rays,
+            seconds: s,
+            mrays_per_s: mrays_per_s(rays, s),
+            compact_seconds: None,
+            peer: None,
+            ratio: None,
+            mismatches: None,
+            hit_miss: None,
+            ties: None,
+            occluded: None,
+            occluded_project: None,
+        }
+    }
+
+    /// The record as one line of JSON (no trailing newline).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("records serialise")
+    }
+}
+
+/// A whole-job measurement (full frame, OBJ load, tree builds): one JSON line with a `timing`
+/// key instead of `stage`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Timing {
+    /// Scene name.
+    pub scene: String,
+    /// What was timed: `frame` (median of R renders), `load_obj`, `tree` (as loaded),
+    /// `build_sah` (best of R), `embree_build` (best of R).
+    pub timing: String,
+    /// Worker threads.
+    pub threads: usize,
+    /// Seconds.
+    pub seconds: f64,
+    /// How many runs the figure summarises.
+    pub runs: usize,
+}
+
+impl Timing {
+    /// The timing as one line of JSON (no trailing newline).
+    pub fn to_json(&self) -> String {
+        serde_json::to_string(self).expect("timings serialise")
+    }
+}
+
+/// What [`run`] measures and how.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct BenchConfig {
+    /// Worker threads of the rayon pool everything runs on.
+    pub threads: usize,
+    /// Timed runs per kernel (best taken) and renders per frame figure (median taken).
+    pub repeat: usize,
+}
+
+/// Everything `wavefront bench` prints.
+#[derive(Clone, Debug, Default)]
+pub struct Report {
+    /// Scene name.
+    pub scene: String,
+    /// Worker threads.
+    pub threads: usize,
+    /// Timed runs per figure.
+    pub repeat: usize,
+    /// Stage rows, in schedule order.
+    pub stages: Vec<Record>,
+    /// Peer rows (empty without a peer).
+    pub peers: Vec<Record>,
+    /// Frame, load and build timings.
+    pub timings: Vec<Timing>,
+    /// Remarks for the reader (skipped peers, multi-wave snapshots).
+    pub notes: Vec<String>,
+}
+
+impl Report {
+    /// All records and timings, one JSON object per line.
+    pub fn json_lines(&self) -> String {
+        let mut s = String::new();
+        for r in self.stages.iter().chain(&self.peers) {
+            s.push_str(&r.to_json());
+            s.push('\n');
+        }
+        for t in &self.timings {
+            s.push_str(&t.to_json());
+            s.push('\n');
+        }
+        s
+    }
+
+    fn timing(&self, name: &str) -> Option<&Timing> {
+        self.timings.iter().find(|t| t.timing == name)
+    }
+}
+
+impl fmt::Display for Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "scene {} on {} thread(s), best of {} after one warm-up",
+            self.scene, self.threads, self.repeat
+        )?;
+        writeln!(
+            f,
+            "{:<10} {:>5} {:>10} {:>10} {:>10}",
+            "stage", "depth", "rays", "ms", "Mrays/s"
+        )?;
+        for r in &self.stages {
+            write!(
+                f,
+                "{:<10} {:>5} {:>10} {:>10.3} {:>10.1}",
+                r.stage,
+                r.depth,
+                r.rays,
+                r.seconds * 1e3,
+                r.mrays_per_s
+            )?;
+            if let Some(c) = r.compact_seconds {
+                write!(f, "   (+ compaction {:.3} ms)", c * 1e3)?;
+            }
+            writeln!(f)?;
+        }
+        if let Some(t) = self.timing("frame") {
+            writeln!(
+                f,
+                "frame: {:.2} ms (median of {} renders)",
+                t.seconds * 1e3,
+                t.runs
+            )?;
+        }
+        if let (Some(l), Some(t)) = (self.timing("load_obj"), self.timing("tree")) {
+            writeln!(
+                f,
+                "mesh: OBJ load {:.1} ms, tree build {:.1} ms",
+                l.seconds * 1e3,
+                t.seconds * 1e3
+            )?;
+        }
+        if !self.peers.is_empty() {
+            writeln!(
+                f,
+                "{:<20} {:<10} {:>5} {:>10} {:>10} {:>10} {:>15}  agreement",
+                "peer", "stage", "depth", "rays", "ms", "Mrays/s", "project/peer"
+            )?;
+            for r in &self.peers {
+                let agreement = match (r.mismatches, r.ties, r.occluded, r.occluded_project) {
+                    (Some(m), Some(t), _, _) => format!(
+                        "{m} mismatches ({} hit/miss), {t} exact ties",
+                        r.hit_miss.unwrap_or(0)
+                    ),
+                    (_, _, Some(o), Some(p)) => format!("{o} occluded (project {p})"),
+                    _ => String::new(),
+                };
+                writeln!(
+                    f,
+                    "{:<20} {:<10} {:>5} {:>10} {:>10.3} {:>10.1} {:>15.3}  {agreement}",
+                    r.peer.as_deref().unwrap_or("?"),
+                    r.stage,
+                    r.depth,
+                    r.rays,
+                    r.seconds * 1e3,
+                    r.mrays_per_s,
+                    r.ratio.unwrap_or(f64::NAN),
+                )?;
+            }
+        }
+        if let (Some(e), Some(s)) = (self.timing("embree_build"), self.timing("build_sah")) {
+            writeln!(
+                f,
+                "build: Embree BVH {:.1} ms vs SAH kD tree {:.1} ms (best of {})",
+                e.seconds * 1e3,
+                s.seconds * 1e3,
+                e.runs
+            )?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Why [`run`] could not measure.
+#[derive(Debug, thiserror::Error)]
+pub enum BenchError {
+    /// The scene's geometry could not be loaded.
+    #[error(transparent)]
+    Load(#[from] LoadError),
+    /// The rayon pool could not start.
+    #[error("cannot start the thread pool: {0}")]
+    Pool(#[from] rayon::ThreadPoolBuildError),
+    /// The peer could not build its scene.
+    #[error("peer: {0}")]
+    Peer(String),
+}
+
+/// Loads `scene`, snapshots its first wave and times every stage, a full frame and (with the
+/// `embree` feature, for pure triangle scenes) the Embree peer, all on a pool of
+/// `config.threads` threads.
+pub fn run(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(config.threads.max(1))
+        .build()?;
+    pool.install(|| run_on_current_pool(scene, config))
+}
+
+fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
+    let threads = rayon::current_num_threads();
+    let repeat = config.repeat.max(1);
+    let world = World::load(scene)?;
+    let mut report = Report {
+        scene: scene.name.clone(),
+        threads,
+        repeat,
+        ..Report::default()
+    };
+    let mut bench = StageBench::new(scene, &world);
+    if bench.snapshot.waves > 1 {
+        report.notes.push(format!(
+            "stages timed on the first of {} waves ({} samples)",
+            bench.snapshot.waves,
+            bench.snapshot.wave.len()
+        ));
+    }
+    for (stage, depth) in bench.snapshot.entries() {
+        let mut rays = 0;
+        let s = best_of(repeat, || rays = bench.run(stage, depth));
+        let mut r = Record::new(&scene.name, stage, depth, threads, rays, s);
+        if stage == Stage::Intersect {
+            r.compact_seconds = Some(best_of(repeat, || {
+                bench.run_compaction(depth);
+            }));
+        }
+        report.stages.push(r);
+    }
+
+    let frame = median_of(repeat, || {
+        render(scene, &world, RenderOptions::default(), |_, _| {});
+    });
+    report
+        .timings
+        .push(timing(scene, "frame", threads, frame, repeat));
+    if let Some(t) = &world.triangles {
+        report
+            .timings
+            .push(timing(scene, "load_obj", threads, t.load_seconds, 1));
+        report
+            .timings
+            .push(timing(scene, "tree", threads, t.tree_seconds, 1));
+        peers(scene, &world, &bench.snapshot, repeat, &mut report)?;
+    }
+    Ok(report)
+}
+
+fn timing(scene: &Scene, name: &str, threads: usize, seconds: f64, runs: usize) -> Timing {
+    Timing {
+        scene: scene.name.clone(),
+        timing: name.into(),
+        threads,
+        seconds,
+        runs,
+    }
+}
+
+#[cfg(not(feature = "embree"))]
+fn peers(
+    _scene: &Scene,
+    _world: &World,
+    _snapshot: &Snapshot,
+    _repeat: usize,
+    report: &mut Report,
+) -> Result<(), BenchError> {
+    report
+        .notes
+        .push("Embree peer not built (rebuild with `--features embree`)".into());
+    Ok(())
+}
+
+/// Traces the snapshot's intersect and shadow rays with Embree and adds peer rows and build times.
+#[cfg(feature = "embree")]
+fn peers(
+    scene: &Scene,
+    world: &World,
+    snapshot: &Snapshot,
+    repeat: usize,
+    report: &mut Report,
+) -> Result<(), BenchError> {
+    use crate::accel::kdtree::{BuildMethod, KdTree};
+    use crate::peer::embree::{EmbreeScene, TraceOpts};
+    use bytemuck::cast_slice;
+
+    let Some(tris) = &world.triangles else {
+        return Ok(());
+    };
+    if !world.spheres.is_empty() || !world.planes.is_empty() {
+        report.notes.push(
+            "Embree peer skipped: the scene has spheres or planes, the peer only triangles".into(),
+        );
+        return Ok(());
+    }
+    let threads = report.threads;
+    let config = format!("threads={threads}");
+    let (v, idx) = (&tris.mesh.vertices, &tris.mesh.indices);
+    let embree = EmbreeScene::with_config(v, idx, &config).map_err(BenchError::Peer)?;
+    let mut build = embree.build_seconds();
+    for _ in 1..repeat {
+        let s = EmbreeScene::with_config(v, idx, &config).map_err(BenchError::Peer)?;
+        build = build.min(s.build_seconds());
+    }
+    report
+        .timings
+        .push(timing(scene, "embree_build", threads, build, repeat));
+    let sah = best_of(repeat, || {
+        std::hint::black_box(KdTree::build(&tris.mesh, BuildMethod::Sah));
+    });
+    report
+        .timings
+        .push(timing(scene, "build_sah", threads, sah, repeat));
+
+    let opts = TraceOpts::parallel();
+    let project = |stage: Stage, depth: u32| {
+        report
+            .stages
+            .iter()
+            .find(|r| r.stage == stage.label() && r.depth == depth)
+            .map(|r| r.mrays_per_s)
+    };
+    let mut rows = vec![];
+    for d in &snapshot.depths {
+        let peer_row = |name: &str, stage: Stage, rays: usize, s: f64| {
+            let mut r = Record::new(&scene.name, stage, d.depth, threads, rays, s);
+            r.peer = Some(name.into());
+            r.ratio = project(stage, d.depth).map(|p| p / r.mrays_per_s);
+            r
+        };
+        let (o, dir) = (cast_slice(&d.rays.origin), cast_slice(&d.rays.direction));
+        let n = d.rays.len();
+        let (mut t, mut prim) = (vec![0.0; n], vec![0u32; n]);
+        for (name, stream) in [("embree-intersect1", false), ("embree-intersect1m", true)] {
+            let s = best_of(repeat, || {
+                if stream {
+                    embree.intersect1m_with(opts, o, dir, &d.rays.t_max, &mut t, &mut prim)
+                } else {
+                    embree.intersect1_with(opts, o, dir, &d.rays.t_max, &mut t, &mut prim)
+                }
+            });
+            let mut r = peer_row(name, Stage::Intersect, n, s);
+            let c = compare_closest(&d.closest, &t, &prim);
+            (r.mismatches, r.hit_miss, r.ties) =
+                (Some(c.mismatches), Some(c.hit_miss), Some(c.ties));
+            rows.push(r);
+        }
+        if let Some(sh) = &d.shadows {
+            let (o, dir) = (cast_slice(&sh.origin), cast_slice(&sh.direction));
+            let mut occ = vec![false; sh.len()];
+            for (name, stream) in [("embree-occluded1", false), ("embree-occluded1m", true)] {
+                let s = best_of(repeat, || {
+                    if stream {
+                        embree.occluded1m_with(opts, o, dir, &sh.t_max, &mut occ)
+                    } else {
+                        embree.occluded1_with(opts, o, dir, &sh.t_max, &mut occ)
+                    }
+                });
+                let mut r = peer_row(name, Stage::Shadow, sh.len(), s);
+                let ours = d.occluded.iter().filter(|&&b| b).count();
+                let theirs = occ.iter().filter(|&&b| b).count();
+                (r.occluded, r.occluded_project) = (Some(theirs), Some(ours));
+                if ours.abs_diff(theirs) as f64 > 1e-4 * sh.len() as f64 {
+                    report.notes.push(format!(
+                        "{name} depth {}: occluded counts differ by more than 0.01%: \
+                         embree {theirs}, project {ours} of {}",
+                        d.depth,
+                        sh.len()
+                    ));
+                }
+                rows.push(r);
+            }
+        }
+    }
+    for r in &rows {
+        if r.mismatches.is_some_and(|m| m > 0) {
+            report.notes.push(format!(
+                "{} depth {}: {} rays hit a different triangle at a t more than 1e-5 apart \
+                 ({} of them hit on one side and miss on the other)",
+                r.peer.as_deref().unwrap_or("?"),
+                r.depth,
+                r.mismatches.unwrap_or(0),
+                r.hit_miss.unwrap_or(0)
+            ));
+        }
+    }
+    report.peers = rows;
+    Ok(())
+}
+
+/// How a peer's closest hits differ from the project's.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ClosestAgreement {
+    /// Rays with a different primitive whose `t` differs by more than 1e-5 relative (a hit
+    /// against a miss included).
+    pub mismatches: usize,
+    /// The mismatches where exactly one side misses (e.g. rays through a shared edge).
+    pub hit_miss: usize,
+    /// Rays with a different primitive at a `t` within 1e-5 relative (exact ties).
+    pub ties: usize,
+}
+
+/// Compares a peer's closest hits (`t`, primitive id or `u32::MAX` for a miss) with the
+/// project's, row for row.
+pub fn compare_closest(project: &HitColumns, t: &[f32], prim: &[u32]) -> ClosestAgreement {
+    let mut c = ClosestAgreement::default();
+    for i in 0..t.len() {
+        if project.prim[i].0 == prim[i] {
+            continue;
+        }
+        let (a, b) = (project.t[i], t[i]);
+        if a.is_finite() && b.is_finite() && (a - b).abs() <= 1e-5 * a.abs().max(b.abs()) {
+            c.ties += 1;
+        } else {
+            c.mismatches += 1;
+            c.hit_miss += usize::from(a.is_finite() != b.is_finite());
+        }
+    }
+    c
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::queue::PrimId;
+    use crate::scene::builtin::spheres;
+
+    fn small_spheres() -> Scene {
+        let mut scene = spheres();
+        scene.image.width = 64;
+        scene.image.height = 48;
+        scene
+    }
+
+    #[test]
+    fn snapshot_ray_counts_match_the_render_stats() {
+        let scene = small_spheres();
+        let world = World::load(&scene).unwrap();
+        let snapshot = Snapshot::capture(&scene, &world);
+        assert_eq!(snapshot.waves, 1);
+        let (_, stats) = render(&scene, &world, RenderOptions::default(), |_, _| {});
+        let entries = snapshot.entries();
+        assert_eq!(
+            entries.len(),
+            stats.entries.len(),
+            "the same (stage, depth) pairs run"
+        );
+        for (stage, depth) in entries {
+            let stat = stats.get(depth, stage).expect("stage ran in the render");
+            let expected = if stage == Stage::Generate {
+                stat.rays_out
+            } else {
+                stat.rays_in
+            };
+            assert_eq!(
+                snapshot.rays(stage, depth),
+                Some(expected as usize),
+                "{stage} depth {depth}"
+            );
+        }
+        // Scene A: depths 0..=2, shadows at each, reflect at 0 and 1.
+        assert_eq!(snapshot.depths.len(), 3);
+        assert!(snapshot.depth(1).unwrap().reflect);
+        assert!(!snapshot.depth(2).unwrap().reflect);
+    }
+
+    #[test]
+    fn every_kernel_reproduces_its_snapshot() {
+        let scene = small_spheres();
+        let world = World::load(&scene).unwrap();
+        let mut bench = StageBench::new(&scene, &world);
+        for (stage, depth) in bench.snapshot.entries() {
+            let rays = bench.run(stage, depth);
+            assert_eq!(Some(rays), bench.snapshot.rays(stage, depth));
+        }
+        let d1 = bench.snapshot.depth(1).unwrap().clone();
+        bench.run(Stage::Intersect, 1);
+        assert_eq!(bench.out.closest.prim, d1.closest.prim);
+        bench.run(Stage::Shadow, 1);
+        assert_eq!(bench.out.occluded, d1.occluded);
+        bench.run(Stage::Reflect, 0);
+        assert_eq!(bench.out.next.direction, d1.rays.direction);
+        bench.run(Stage::Shade, 1);
+        assert_eq!(bench.out.hits[1].normal, d1.hits.normal);
+        assert_eq!(bench.run_compaction(1), d1.rays.len());
+        assert_eq!(bench.out.compacted.slot, d1.hits.slot);
+    }
+
+    #[test]
+    fn a_scene_without_reflections_snapshots_one_depth() {
+        let mut scene = small_spheres();
+        scene.render.max_depth = 0;
+        scene.render.shadows = false;
+        let world = World::load(&scene).unwrap();
+        let snapshot = Snapshot::capture(&scene, &world);
+        assert_eq!(
+            snapshot.entries(),
+            vec![
+                (Stage::Generate, 0),
+                (Stage::Intersect, 0),
+                (Stage::Shade, 0)
+            ]
+        );
+        assert_eq!(snapshot.rays(Stage::Shadow, 0), None);
+    }
+
+    #[test]
+    fn json_lines_parse_with_the_documented_keys() {
+        let scene = small_spheres();
+        let report = run(
+            &scene,
+            BenchConfig {
+                threads: 1,
+                repeat: 1,
+            },
+        )
+        .unwrap();
+        let lines = report.json_lines();
+        let mut stages = 0;
+        for line in lines.lines() {
+            let v: serde_json::Value = serde_json::from_str(line).unwrap();
+            assert_eq!(v["scene"], "spheres");
+            assert_eq!(v["threads"], 1);
+            assert!(v["seconds"].as_f64().unwrap() >= 0.0);
+            if let Some(stage) = v["stage"].as_str() {
+                stages += 1;
+                assert!(Stage::ALL.iter().any(|s| s.label() == stage), "{stage}");
+                assert!(v["depth"].is_u64() && v["rays"].is_u64());
+                assert!(v["mrays_per_s"].is_f64());
+                let back: Record = serde_json::from_str(line).unwrap();
+                let orig = &report.stages[stages - 1];
+                assert_eq!(
+                    (&back.stage, back.depth, back.rays),
+                    (&orig.stage, orig.depth, orig.rays)
+                );
+                assert!((back.mrays_per_s - orig.mrays_per_s).abs() <= 1e-9 * orig.mrays_per_s);
+            } else {
+                assert_eq!(v["timing"], "frame");
+            }
+        }
+        assert_eq!(stages, report.stages.len());
+        assert_eq!(
+            stages, 12,
+            "generate + 3 × (intersect, shade, shadow) + 2 reflect"
+        );
+        let text = report.to_string();
+        assert!(text.contains("intersect") && text.contains("frame:"));
+    }
+
+    #[test]
+    fn closest_hit_comparison_separates_ties_from_mismatches() {
+        let project = HitColumns {
+            t: vec![1.0, 2.0, 3.0, f32::INFINITY, 5.0],
+            prim: [0, 1, 2, u32::MAX, 4].map(PrimId).to_vec(),
+        };
+        let t = [1.0, 2.0, 3.5, 4.0, 5.0 * (1.0 + 1e-6)];
+        let prim = [0, 7, 9, 3, 8];
+        let c = compare_closest(&project, &t, &prim);
+        assert_eq!((c.mismatches, c.hit_miss, c.ties), (2, 1, 2));
+    }
+}

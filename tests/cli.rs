@@ -1,0 +1,217 @@
+//! The command line (SPEC §9), run as a separate process in a scratch directory.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// A fresh, empty scratch directory, removed on drop.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(name: &str) -> Scratch {
+        let dir = std::env::temp_dir().join(format!("wavefront-cli-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).expect("cannot create a scratch directory");
+        Scratch(dir)
+    }
+
+    fn path(&self) -> &Path {
+        &self.0
+    }
+
+    /// Runs the binary with `args` in this directory.
+    fn run(&self, args: &[&str]) -> Output {
+        Command::new(env!("CARGO_BIN_EXE_wavefront"))
+            .args(args)
+            .current_dir(&self.0)
+            .env_remove("WAVEFRONT_SIBENIK")
+            .output()
+            .expect("cannot run the wavefront binary")
+    }
+
+    /// Names of the files in the directory, sorted.
+    fn files(&self) -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(&self.0)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        names
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs `args`, which must fail cleanly: non-zero exit, one `error:` line on stderr, no panic,
+/// and no new file in the directory (no output, no `*.partial`). Returns the error line.
+fn assert_clean_failure(dir: &Scratch, args: &[&str]) -> String {
+    let before = dir.files();
+    let o = dir.run(args);
+    let err = stderr(&o);
+    assert!(!o.status.success(), "{args:?} succeeded; stderr: {err}");
+    assert!(
+        !err.contains("panicked"),
+        "{args:?} panicked instead of reporting an error:\n{err}"
+    );
+    let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(
+        lines.len(),
+        1,
+        "{args:?}: expected one line on stderr:\n{err}"
+    );
+    assert!(
+        lines[0].starts_with("error:"),
+        "{args:?}: stderr does not start with `error:`:\n{err}"
+    );
+    assert_eq!(dir.files(), before, "{args:?} left files behind");
+    lines[0].to_owned()
+}
+
+#[test]
+fn render_without_arguments_writes_out_png() {
+    let dir = Scratch::new("default");
+    let o = dir.run(&["render"]);
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert_eq!(dir.files(), vec!["out.png"]);
+    let img = image::open(dir.path().join("out.png")).expect("out.png is not a readable image");
+    assert_eq!((img.width(), img.height()), (512, 512));
+    assert_eq!(
+        image::ImageFormat::from_path(dir.path().join("out.png")).unwrap(),
+        image::ImageFormat::Png
+    );
+    let bytes = std::fs::read(dir.path().join("out.png")).unwrap();
+    assert!(bytes.starts_with(b"\x89PNG\r\n\x1a\n"), "not PNG data");
+}
+
+#[test]
+fn render_to_ppm_writes_binary_p6() {
+    let dir = Scratch::new("ppm");
+    let o = dir.run(&["render", "spheres", "-o", "x.ppm"]);
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    assert_eq!(dir.files(), vec!["x.ppm"]);
+    let bytes = std::fs::read(dir.path().join("x.ppm")).unwrap();
+    assert!(bytes.starts_with(b"P6"), "not a binary PPM");
+    let header_and_pixels = 512 * 512 * 3;
+    assert!(bytes.len() > header_and_pixels && bytes.len() < header_and_pixels + 64);
+}
+
+#[test]
+fn plan_lists_depths_0_to_2_and_no_kd_tree_stage() {
+    let dir = Scratch::new("plan");
+    let o = dir.run(&["plan", "spheres"]);
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let out = stdout(&o);
+    for depth in 0..=2 {
+        assert!(
+            out.contains(&format!("depth {depth}:")),
+            "no depth {depth}:\n{out}"
+        );
+    }
+    assert!(!out.contains("depth 3"), "{out}");
+    let stage_lines: Vec<&str> = out.lines().filter(|l| l.starts_with("depth")).collect();
+    for l in &stage_lines {
+        let l = l.to_lowercase();
+        assert!(
+            !l.contains("kd") && !l.contains("kdtree"),
+            "kD stage in: {l}"
+        );
+    }
+    assert!(stage_lines[0].contains("generate") && stage_lines[0].contains("reflect"));
+    assert!(!stage_lines[2].contains("reflect"), "{out}");
+    assert!(out.contains("no kD tree"), "{out}");
+    assert!(dir.files().is_empty(), "plan wrote files");
+}
+
+#[test]
+fn stats_print_a_line_for_each_stage() {
+    let dir = Scratch::new("stats");
+    let o = dir.run(&["render", "--stats", "--depth", "1"]);
+    assert!(o.status.success(), "stderr: {}", stderr(&o));
+    let out = stdout(&o);
+    for label in ["generate", "intersect", "shade", "shadow", "reflect"] {
+        assert!(
+            out.lines()
+                .any(|l| l.split_whitespace().nth(1) == Some(label)),
+            "no stats line for {label}:\n{out}"
+        );
+    }
+}
+
+#[test]
+fn a_missing_scene_file_is_a_clean_error() {
+    let dir = Scratch::new("missing");
+    let line = assert_clean_failure(&dir, &["render", "nonexistent.toml"]);
+    assert!(line.contains("nonexistent.toml"), "{line}");
+}
+
+#[test]
+fn an_unknown_built_in_is_a_clean_error() {
+    let dir = Scratch::new("unknown");
+    let line = assert_clean_failure(&dir, &["render", "teapot"]);
+    assert!(
+        line.contains("teapot") && line.contains("spheres"),
+        "{line}"
+    );
+}
+
+#[test]
+fn malformed_toml_names_file_and_line() {
+    let dir = Scratch::new("malformed");
+    std::fs::write(
+        dir.path().join("bad.toml"),
+        "[image]\nwidth = 512\nheight = = 3\n",
+    )
+    .unwrap();
+    let line = assert_clean_failure(&dir, &["render", "bad.toml"]);
+    assert!(line.contains("bad.toml:3"), "file:line missing: {line}");
+}
+
+#[test]
+fn zero_samples_is_a_clean_error() {
+    let dir = Scratch::new("samples");
+    let line = assert_clean_failure(&dir, &["render", "--samples", "0"]);
+    assert!(line.contains("--samples"), "{line}");
+}
+
+#[test]
+fn zero_threads_is_a_clean_error() {
+    let dir = Scratch::new("threads");
+    let line = assert_clean_failure(&dir, &["render", "--threads", "0"]);
+    assert!(line.contains("--threads"), "{line}");
+}
+
+#[test]
+fn an_unsupported_output_format_is_a_clean_error() {
+    let dir = Scratch::new("jpg");
+    let line = assert_clean_failure(&dir, &["render", "-o", "x.jpg"]);
+    assert!(line.contains("x.jpg"), "{line}");
+}
+
+#[test]
+fn output_into_a_missing_directory_is_a_clean_error() {
+    let dir = Scratch::new("nodir");
+    let line = assert_clean_failure(&dir, &["render", "-o", "nodir/x.png"]);
+    assert!(line.contains("nodir"), "{line}");
+}
+
+#[test]
+fn a_missing_mesh_says_where_to_put_it() {
+    let dir = Scratch::new("mesh");
+    let line = assert_clean_failure(&dir, &["render", "sibenik", "--mesh", "/nonexistent.obj"]);
+    assert!(line.contains("/nonexistent.obj"), "{line}");
+    assert!(
+        line.contains("../shared/data/sibenik/sibenik.obj"),
+        "does not say where the mesh belongs: {line}"
+    );
+}

@@ -1,0 +1,117 @@
+//! Shared fixtures for the integration tests: rendering a scene to 8-bit RGB, thread pools of a
+//! given size, and the external data (Sibenik mesh, reference figures) with graceful skipping.
+
+// Each test binary uses a different subset of these helpers.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use wavefront::oracle::{OracleImage, render_oracle};
+use wavefront::{Film, RenderOptions, Scene, World};
+
+/// Loads `scene`'s world and renders it with `options`.
+pub fn render_film_with(scene: &Scene, options: RenderOptions) -> Film {
+    let world = World::load(scene).unwrap_or_else(|e| panic!("cannot load {}: {e}", scene.name));
+    wavefront::render(scene, &world, options, |_, _| {}).0
+}
+
+/// The 8-bit RGB pixels (row 0 at the top) a PNG of the wavefront render of `scene` would hold.
+pub fn render_png_bytes(scene: &Scene) -> Vec<u8> {
+    render_png_bytes_with(scene, RenderOptions::default())
+}
+
+/// [`render_png_bytes`] with explicit render options.
+pub fn render_png_bytes_with(scene: &Scene, options: RenderOptions) -> Vec<u8> {
+    render_film_with(scene, options).to_rgb8(scene.image.gamma)
+}
+
+/// Runs `f` in a fresh rayon pool of `threads` threads.
+pub fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .expect("cannot build a thread pool")
+        .install(f)
+}
+
+/// The oracle's render of `scene` (its mesh, if any, loaded by the project's OBJ reader).
+pub fn oracle_image(scene: &Scene) -> OracleImage {
+    let mesh = scene.meshes.first().map(|m| {
+        wavefront::mesh::TriangleMesh::load_obj(&m.path)
+            .unwrap_or_else(|e| panic!("cannot load {}: {e}", m.path.display()))
+    });
+    render_oracle(scene, mesh.as_ref())
+}
+
+/// The oracle's 8-bit RGB render of `scene`.
+pub fn oracle_png_bytes(scene: &Scene) -> Vec<u8> {
+    oracle_image(scene).to_rgb8(f64::from(scene.image.gamma))
+}
+
+/// The Sibenik mesh path the built-in scenes use.
+pub fn sibenik_mesh_path() -> PathBuf {
+    wavefront::scene::builtin::sibenik_mesh_path()
+}
+
+/// Prints why a test is skipped and returns `None` when `path` is missing, else `Some(path)`.
+pub fn skip_if_missing(path: &Path, what: &str) -> Option<PathBuf> {
+    if path.exists() {
+        Some(path.to_path_buf())
+    } else {
+        eprintln!(
+            "SKIPPED: {what} not found at {} — this test needs it; see SPEC §5 and \
+             ../shared/reference/README.md for where it belongs",
+            path.display()
+        );
+        None
+    }
+}
+
+/// The Sibenik mesh, or `None` (with a message) when it is not installed.
+pub fn sibenik_mesh() -> Option<PathBuf> {
+    skip_if_missing(&sibenik_mesh_path(), "the Sibenik mesh (sibenik.obj)")
+}
+
+/// `../shared/reference` beside the project root, or `None` (with a message) when missing.
+pub fn reference_dir() -> Option<PathBuf> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference");
+    skip_if_missing(&dir, "the assignment's reference figures directory")
+}
+
+/// A reference figure as 8-bit RGB with its size.
+pub fn read_rgb8(path: &Path) -> (u32, u32, Vec<u8>) {
+    let img = image::open(path)
+        .unwrap_or_else(|e| panic!("cannot read {}: {e}", path.display()))
+        .to_rgb8();
+    (img.width(), img.height(), img.into_raw())
+}
+
+/// Figures of the README of `../shared/reference`: mean absolute error over all channels on the
+/// 0–255 scale, and the share of pixels whose largest channel error exceeds 16 levels.
+#[derive(Clone, Copy, Debug)]
+pub struct ReferenceError {
+    /// Mean absolute channel error, in levels.
+    pub mae: f64,
+    /// Share (0–1) of pixels off by more than 16 levels in some channel.
+    pub over_16: f64,
+}
+
+/// Compares a render against a reference figure (both 8-bit RGB of the same size).
+pub fn reference_error(render: &[u8], reference: &[u8]) -> ReferenceError {
+    assert_eq!(render.len(), reference.len(), "images of different sizes");
+    let total: u64 = render
+        .iter()
+        .zip(reference)
+        .map(|(a, b)| u64::from(a.abs_diff(*b)))
+        .sum();
+    let pixels = render.len() / 3;
+    let over = render
+        .chunks_exact(3)
+        .zip(reference.chunks_exact(3))
+        .filter(|(a, b)| a.iter().zip(*b).any(|(x, y)| x.abs_diff(*y) > 16))
+        .count();
+    ReferenceError {
+        mae: total as f64 / render.len().max(1) as f64,
+        over_16: over as f64 / pixels.max(1) as f64,
+    }
+}
