@@ -590,9 +590,10 @@ impl Bvh {
     }
 }
 
-// Materials are stored in f32 (0.2 is 0.2000000030), so shading checks allow 1e-7.
 #[cfg(test)]
 mod tests {
+    // Materials are stored in f32 (0.2 is 0.2000000030), so shading checks allow 1e-7.
+
     use super::*;
     use crate::scene::builtin::spheres;
 

@@ -136,7 +136,9 @@ const SIBENIK_MAE: f64 = 0.6;
 const SIBENIK_OVER_16: f64 = 0.002;
 
 /// The full Sibenik render against the oracle (≥ 99.9% of pixels within 1/255) and against the
-/// assignment's figure.
+/// assignment's figure. Measured: 45 / 69 pixels (without / with shadows) off by more than 1/255,
+/// 43 of them on the anti-diagonal, whose rays graze the top edge of a wall (see
+/// `sibenik_at_low_resolution_matches_the_oracle`), the rest on shadow boundaries and silhouettes.
 fn sibenik_matches_the_oracle(shadows: bool) {
     let Some(_) = sibenik_mesh() else { return };
     let s = sibenik(shadows);
@@ -162,13 +164,11 @@ fn sibenik_matches_the_oracle(shadows: bool) {
 }
 
 #[test]
-#[ignore = "needs the kD tree"]
 fn sibenik_without_shadows_matches_the_oracle() {
     sibenik_matches_the_oracle(false);
 }
 
 #[test]
-#[ignore = "needs the kD tree"]
 fn sibenik_with_shadows_matches_the_oracle() {
     sibenik_matches_the_oracle(true);
 }

@@ -258,7 +258,7 @@ fn quad_z(lo: f32, hi: f32, z: f32) -> ([[f32; 3]; 4], [[u32; 3]; 2]) {
 #[test]
 fn secondary_rays_leaving_triangles_far_out_never_rehit_them() {
     for scale in [1.0f32, 1e2, 1e3, 1e4] {
-        let (v, i) = quad_z(-1.0 * scale, 1.0 * scale, scale);
+        let (v, i) = quad_z(-scale, scale, scale);
         let mesh = TriangleMesh {
             vertices: v.to_vec(),
             indices: i.to_vec(),
