@@ -17,7 +17,9 @@
 use std::hint::black_box;
 use std::time::Duration;
 
-use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use criterion::{
+    BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group, criterion_main,
+};
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::bench::StageBench;
@@ -95,9 +97,11 @@ fn frame(c: &mut Criterion, label: &str, scene: &Scene, world: &World) {
     group.throughput(Throughput::Elements(u64::from(
         i.width * i.height * i.samples,
     )));
+    // Frames take tens of ms to seconds: one iteration per sample.
+    group.sampling_mode(SamplingMode::Flat);
     if i.samples > 1 {
-        // Seconds per frame: ten samples are enough.
-        group.sample_size(10).warm_up_time(Duration::from_millis(1));
+        // Seconds per frame: ten single frames are enough, without warm-up.
+        group.warm_up_time(Duration::from_millis(1));
     }
     group.bench_function(label, |b| {
         b.iter(|| render(scene, world, RenderOptions::default(), |_, _| {}))
@@ -130,6 +134,7 @@ fn builds(c: &mut Criterion) {
     }
     let mesh = TriangleMesh::load_obj(&path).expect("sibenik loads");
     let mut group = c.benchmark_group("build");
+    group.sampling_mode(SamplingMode::Flat);
     group.throughput(Throughput::Elements(mesh.len() as u64));
     for (label, method) in [
         ("sah", BuildMethod::Sah),
@@ -140,6 +145,7 @@ fn builds(c: &mut Criterion) {
     group.finish();
 
     let mut group = c.benchmark_group("load");
+    group.sampling_mode(SamplingMode::Flat);
     group.throughput(Throughput::Elements(mesh.len() as u64));
     group.bench_function("obj", |b| {
         b.iter(|| TriangleMesh::load_obj(&path).expect("sibenik loads"))
@@ -147,8 +153,11 @@ fn builds(c: &mut Criterion) {
     group.finish();
 }
 
+/// Short measurements (the machine is shared) and no plots: with the crate's `plotters` features
+/// criterion's chart backend needs system fonts, which the machines do not have.
 fn config() -> Criterion {
     Criterion::default()
+        .without_plots()
         .sample_size(10)
         .warm_up_time(Duration::from_secs(1))
         .measurement_time(Duration::from_secs(3))
