@@ -79,7 +79,6 @@ impl Snapshot {
             pixels: pixels_per_wave.min(total),
             samples: spp,
         };
-        let offset = scene.render.robustness.offset;
 
         let mut rays = RayQueue::default();
         let mut closest = HitColumns::default();
@@ -122,7 +121,7 @@ impl Snapshot {
             let reflect = plan.stages.contains(&Stage::Reflect);
             let mut next = RayQueue::default();
             if reflect {
-                spawn_reflection_rays(world, offset, &hits, &mut rows, &mut next);
+                spawn_reflection_rays(world, &hits, &mut rows, &mut next);
             }
             depths.push(DepthSnapshot {
                 depth: plan.depth,
@@ -261,13 +260,9 @@ impl<'a> StageBench<'a> {
                 snap.unwrap().shadows.as_ref().unwrap(),
                 &mut out.occluded,
             ),
-            Stage::Reflect => spawn_reflection_rays(
-                world,
-                self.scene.render.robustness.offset,
-                &snap.unwrap().hits,
-                &mut out.rows,
-                &mut out.next,
-            ),
+            Stage::Reflect => {
+                spawn_reflection_rays(world, &snap.unwrap().hits, &mut out.rows, &mut out.next)
+            }
         }
         rays
     }

@@ -220,7 +220,6 @@ pub fn render(
     let spp = image.samples.max(1);
     let total = image.width * image.height;
     let pixels_per_wave = ((options.wave_samples / spp as usize).max(1)).min(total as usize) as u32;
-    let offset = scene.render.robustness.offset;
 
     let mut film = Film::new(image.width, image.height);
     let mut stats = Stats::default();
@@ -285,7 +284,7 @@ pub fn render(
             // reflect: the next depth's rays
             if pipeline.depth_runs(depth, Stage::Reflect) {
                 timed(&mut stats, Stage::Reflect, d, ws.hits.len(), || {
-                    spawn_reflection_rays(world, offset, &ws.hits, &mut ws.rows, &mut ws.next);
+                    spawn_reflection_rays(world, &ws.hits, &mut ws.rows, &mut ws.next);
                     ws.next.len()
                 });
                 std::mem::swap(&mut ws.rays, &mut ws.next);

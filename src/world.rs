@@ -7,6 +7,7 @@ use glam::Vec3;
 
 use crate::accel::kdtree::{BuildMethod, KdTree};
 use crate::error::{LoadError, SceneError};
+use crate::geometry::offset::{EXACT_POINT_ULPS, RAY_POINT_ULPS, offset_origin};
 use crate::geometry::{plane, sphere};
 use crate::mesh::TriangleMesh;
 use crate::queue::PrimId;
@@ -23,6 +24,20 @@ pub enum PrimKind {
     Plane(usize),
     /// Triangle `i` of the merged mesh.
     Triangle(usize),
+}
+
+/// What shading needs to know about a hit.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Surface {
+    /// Hit point (re-projected onto spheres and planes).
+    pub point: Vec3,
+    /// Unit normal facing the incoming ray.
+    pub normal: Vec3,
+    /// Material index.
+    pub material: u32,
+    /// Origin for rays leaving the hit on the facing side (reflections, shadow rays toward lights
+    /// in front): the point offset by its error bound.
+    pub spawn: Vec3,
 }
 
 /// The triangles of all meshes, merged, with their tree.
@@ -156,7 +171,9 @@ impl World {
             }
         }
         if let Some(tris) = &self.triangles
-            && let Some(h) = tris.tree.intersect_closest(&tris.mesh, o, d, best_t)
+            && let Some(h) =
+                tris.tree
+                    .intersect_closest_with(&tris.mesh, o, d, best_t, self.robustness.triangle)
         {
             best_t = h.t;
             best = PrimId(self.triangle_base() + h.tri);
@@ -180,27 +197,31 @@ impl World {
                 .planes
                 .iter()
                 .any(|p| plane::intersect(o, d, p.point, p.normal, t_max).is_some())
-            || self
-                .triangles
-                .as_ref()
-                .is_some_and(|t| t.tree.intersect_occluded(&t.mesh, o, d, t_max))
+            || self.triangles.as_ref().is_some_and(|t| {
+                t.tree
+                    .intersect_occluded_with(&t.mesh, o, d, t_max, self.robustness.triangle)
+            })
     }
 
-    /// Hit point, unit normal facing the incoming direction `d`, and material of a hit.
+    /// The surface at a hit: point, normal facing the incoming direction `d`, material, and the
+    /// origin for rays leaving it.
+    ///
+    /// Sphere and plane hits are re-projected onto the surface, which leaves an error of a few
+    /// ulps, and are offset by [`EXACT_POINT_ULPS`]; triangle hits keep `o + t·d`, whose error grows
+    /// with `t`, and are offset by [`RAY_POINT_ULPS`].
     #[inline]
-    pub fn surface(&self, prim: PrimId, o: Vec3, d: Vec3, t: f32) -> (Vec3, Vec3, u32) {
+    pub fn surface(&self, prim: PrimId, o: Vec3, d: Vec3, t: f32) -> Surface {
         let p = o + t * d;
-        let (p, n, m) = match self.prim_kind(prim) {
+        let (point, n, material, ulps) = match self.prim_kind(prim) {
             PrimKind::Sphere(i) => {
                 let s = &self.spheres[i];
                 let (p, n) = sphere::reproject(p, s.center, s.radius);
-                (p, n, s.material)
+                (p, n, s.material, EXACT_POINT_ULPS)
             }
             PrimKind::Plane(i) => {
                 let pl = &self.planes[i];
-                // Project onto the plane to remove the error of o + t·d.
                 let p = p - (p - pl.point).dot(pl.normal) * pl.normal;
-                (p, pl.normal, pl.material)
+                (p, pl.normal, pl.material, EXACT_POINT_ULPS)
             }
             PrimKind::Triangle(k) => {
                 let tris = self
@@ -208,11 +229,16 @@ impl World {
                     .as_ref()
                     .expect("triangle id without triangles");
                 let n = tris.mesh.geometric_normal(k).normalize();
-                (p, n, tris.material(k as u32))
+                (p, n, tris.material(k as u32), RAY_POINT_ULPS)
             }
         };
-        let n = if n.dot(d) > 0.0 { -n } else { n };
-        (p, n, m)
+        let normal = if n.dot(d) > 0.0 { -n } else { n };
+        Surface {
+            point,
+            normal,
+            material,
+            spawn: offset_origin(point, normal, ulps, self.robustness.offset),
+        }
     }
 }
 

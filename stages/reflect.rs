@@ -1,23 +1,21 @@
 //! Stage `reflect`: mirror rays for the next depth from every hit on a reflective material.
 //!
-//! Reads: `HitQueue.{point, normal, material, direction, weight, slot}`, materials.
+//! Reads: `HitQueue.{spawn, normal, material, direction, weight, slot}`, materials.
 //! Writes: the next depth's `RayQueue` (compacted, slot order) with `weight·α`.
 
 use rayon::prelude::*;
 
-use crate::geometry::offset::offset_origin;
 use crate::queue::compact::kept_rows;
 use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue};
-use crate::scene::OffsetMethod;
 use crate::world::World;
 
 /// The reflection of hit row `i`: `r = d − 2(d·n)n` from the offset hit point, weight `weight·α`.
 #[inline]
-pub fn reflection_ray(world: &World, offset: OffsetMethod, hits: &HitQueue, i: usize) -> RayItem {
+pub fn reflection_ray(world: &World, hits: &HitQueue, i: usize) -> RayItem {
     let (d, n) = (hits.direction[i], hits.normal[i]);
     let alpha = world.materials[hits.material[i] as usize].alpha;
     RayItem {
-        origin: offset_origin(hits.point[i], n, offset),
+        origin: hits.spawn[i],
         direction: d - 2.0 * d.dot(n) * n,
         t_max: f32::INFINITY,
         weight: hits.weight[i] * alpha,
@@ -28,7 +26,6 @@ pub fn reflection_ray(world: &World, offset: OffsetMethod, hits: &HitQueue, i: u
 /// Spawns the next depth's rays into `next` (cleared first); `rows` is scratch.
 pub fn spawn_reflection_rays(
     world: &World,
-    offset: OffsetMethod,
     hits: &HitQueue,
     rows: &mut Vec<u32>,
     next: &mut RayQueue,
@@ -52,7 +49,7 @@ pub fn spawn_reflection_rays(
         .into_par_iter()
         .with_min_len(MIN_CHUNK)
         .for_each(|(o, d, w, s, &i)| {
-            let r = reflection_ray(world, offset, hits, i as usize);
+            let r = reflection_ray(world, hits, i as usize);
             (*o, *d, *w, *s) = (r.origin, r.direction, r.weight, r.slot);
         });
 }
@@ -88,23 +85,21 @@ mod tests {
             hits.t.push(1.0);
             hits.prim.push(PrimId(0));
             hits.point.push(p);
+            hits.spawn.push(p + 1e-5 * n);
             hits.normal.push(n);
             hits.material.push(m);
         }
         let mut next = RayQueue::default();
-        spawn_reflection_rays(
-            &world,
-            OffsetMethod::ScaleAware,
-            &hits,
-            &mut vec![],
-            &mut next,
-        );
+        spawn_reflection_rays(&world, &hits, &mut vec![], &mut next);
         assert_eq!(next.len(), 1);
         let r = next.get(0);
         assert_eq!(r.slot, SampleSlot(11));
         assert_eq!(r.weight, Vec3::splat(0.4));
         assert!((r.direction - Vec3::new(0.0, 1.0, -1.0).normalize()).length() < 1e-6);
-        assert!(r.origin.y > -2.0, "origin is above the floor");
-        assert!(r.origin.y + 2.0 < 1e-4, "but only just");
+        assert_eq!(
+            r.origin,
+            Vec3::new(0.0, -2.0 + 1e-5, -2.0),
+            "rays leave from the spawn column"
+        );
     }
 }

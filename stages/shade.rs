@@ -1,18 +1,17 @@
 //! Stage `shade`: local Whitted shading at every hit (SPEC §2) and the shadow rays it needs.
 //!
 //! Reads: `HitQueue.{origin, direction, weight, slot, t, prim}`, materials, lights.
-//! Writes: `HitQueue.{point, normal, material}`; `emitted` (one row per hit: the radiance added to
+//! Writes: `HitQueue.{point, normal, material, spawn}`; `emitted` (one row per hit: the radiance added to
 //! the sample now, `(1 − α)·weight·(La [+ Ld + Ls when shadows are off])`); `ShadowQueue` (one row
 //! per hit and light that can light it, carrying `(1 − α)·weight·(Ld + Ls)`).
 
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::geometry::offset::offset_origin;
 use crate::queue::compact::{gather, kept_rows};
 use crate::queue::{HitQueue, MIN_CHUNK, ShadowQueue};
-use crate::scene::{Material, OffsetMethod, PointLight, Scene};
-use crate::world::World;
+use crate::scene::{Material, PointLight, Scene};
+use crate::world::{Surface, World};
 
 /// What the shade kernel needs besides the world.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -23,8 +22,6 @@ pub struct ShadeSettings {
     pub shadows: bool,
     /// Evaluate the specular term at all (false when no material has `ks > 0`).
     pub specular: bool,
-    /// Secondary-ray origin offset.
-    pub offset: OffsetMethod,
 }
 
 impl ShadeSettings {
@@ -34,7 +31,6 @@ impl ShadeSettings {
             ambient: scene.render.ambient,
             shadows: scene.needs_shadows(),
             specular: scene.needs_specular(),
-            offset: scene.render.robustness.offset,
         }
     }
 }
@@ -79,16 +75,20 @@ pub fn shade_hit(
     world: &World,
     settings: &ShadeSettings,
     (direction, weight): (Vec3, Vec3),
-    (point, normal, material): (Vec3, Vec3, u32),
+    surface: &Surface,
     mut shadow: impl FnMut(usize, Option<(Vec3, Vec3, f32, Vec3)>),
 ) -> Vec3 {
+    let Surface {
+        point,
+        normal,
+        material,
+        spawn,
+    } = *surface;
     let m = &world.materials[material as usize];
     let w = weight * (1.0 - m.alpha);
     let v = -direction;
     let mut emitted = m.ka * settings.ambient;
-    let origin = settings
-        .shadows
-        .then(|| offset_origin(point, normal, settings.offset));
+    let origin = settings.shadows.then_some(spawn);
     for (j, light) in world.lights.iter().enumerate() {
         let (c, n_dot_l) = direct_light(light, m, settings.specular, point, normal, v);
         match origin {
@@ -126,15 +126,22 @@ pub fn shade_hits(
     hits.point.resize(n, Vec3::ZERO);
     hits.normal.resize(n, Vec3::ZERO);
     hits.material.resize(n, 0);
+    hits.spawn.resize(n, Vec3::ZERO);
     (
-        &mut hits.point,
-        &mut hits.normal,
-        &mut hits.material,
+        (
+            &mut hits.point,
+            &mut hits.normal,
+            &mut hits.material,
+            &mut hits.spawn,
+        ),
         (&hits.prim, &hits.origin, &hits.direction, &hits.t),
     )
         .into_par_iter()
         .with_min_len(MIN_CHUNK)
-        .for_each(|(p, nrm, m, (&prim, &o, &d, &t))| (*p, *nrm, *m) = world.surface(prim, o, d, t));
+        .for_each(|((p, nrm, m, sp), (&prim, &o, &d, &t))| {
+            let s = world.surface(prim, o, d, t);
+            (*p, *nrm, *m, *sp) = (s.point, s.normal, s.material, s.spawn);
+        });
 
     let lights = world.lights.len();
     let shadowed = settings.shadows && lights > 0;
@@ -151,16 +158,17 @@ pub fn shade_hits(
             .flat_map(|&s| std::iter::repeat_n(s, if shadowed { lights } else { 0 })),
     );
 
-    let hit_cols = (
-        &hits.direction,
-        &hits.weight,
-        &hits.point,
-        &hits.normal,
-        &hits.material,
-    );
+    let ray = (&hits.direction, &hits.weight);
+    let surface = (&hits.point, &hits.normal, &hits.material, &hits.spawn);
+    let at = |(&point, &normal, &material, &spawn): (&Vec3, &Vec3, &u32, &Vec3)| Surface {
+        point,
+        normal,
+        material,
+        spawn,
+    };
     if shadowed {
         (
-            hit_cols,
+            (ray, surface),
             c.origin.par_chunks_mut(lights),
             c.direction.par_chunks_mut(lights),
             c.t_max.par_chunks_mut(lights),
@@ -168,8 +176,8 @@ pub fn shade_hits(
         )
             .into_par_iter()
             .with_min_len(MIN_CHUNK / lights.max(1))
-            .map(|((&d, &w, &p, &nrm, &m), o, dir, tm, rad)| {
-                shade_hit(world, settings, (d, w), (p, nrm, m), |j, s| match s {
+            .map(|(((&d, &w), s), o, dir, tm, rad)| {
+                shade_hit(world, settings, (d, w), &at(s), |j, s| match s {
                     Some((so, sd, st, sr)) => (o[j], dir[j], tm[j], rad[j]) = (so, sd, st, sr),
                     None => rad[j] = Vec3::ZERO,
                 })
@@ -182,12 +190,10 @@ pub fn shade_hits(
         gather(&c.radiance, &scratch.rows, &mut shadows.radiance);
         gather(&c.slot, &scratch.rows, &mut shadows.slot);
     } else {
-        hit_cols
+        (ray, surface)
             .into_par_iter()
             .with_min_len(MIN_CHUNK)
-            .map(|(&d, &w, &p, &nrm, &m)| {
-                shade_hit(world, settings, (d, w), (p, nrm, m), |_, _| {})
-            })
+            .map(|((&d, &w), s)| shade_hit(world, settings, (d, w), &at(s), |_, _| {}))
             .collect_into_vec(emitted);
         shadows.clear();
     }

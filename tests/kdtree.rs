@@ -274,10 +274,14 @@ fn check_tree(
             if let Some((t, _)) = w {
                 // Strict t_max: the closest hit itself does not occlude at t_max = t.
                 if full && tree.intersect_occluded(mesh, o, d, t) {
-                    return Some(format!("{name} ray {i}: occluded at t_max = t"));
+                    return Some(format!(
+                        "{name} ray {i} o={o:?} d={d:?}: occluded at t_max = t = {t:e}"
+                    ));
                 }
                 if full && !tree.intersect_occluded(mesh, o, d, t.next_up()) {
-                    return Some(format!("{name} ray {i}: not occluded just past t"));
+                    return Some(format!(
+                        "{name} ray {i} o={o:?} d={d:?}: not occluded just past t = {t:e}"
+                    ));
                 }
                 if full && tree.intersect_closest(mesh, o, d, t).is_some() {
                     return Some(format!("{name} ray {i}: closest hit with t_max = t"));
@@ -300,6 +304,12 @@ fn every_builder_and_the_text_round_trip_match_brute_force_on_sibenik() {
     let clock = std::time::Instant::now();
     let lap = |what: &str| eprintln!("{what}: {:.2} s", clock.elapsed().as_secs_f64());
     let sah = KdTree::build(&mesh, BuildMethod::Sah);
+    let one_thread = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("pool")
+        .install(|| KdTree::build(&mesh, BuildMethod::Sah));
+    assert_eq!(one_thread, sah, "sah tree depends on the thread count");
     let midpoint = KdTree::build(&mesh, BuildMethod::Midpoint);
     sah.validate(&mesh).expect("sah tree valid");
     midpoint.validate(&mesh).expect("midpoint tree valid");

@@ -6,14 +6,11 @@
 
 use glam::{DVec3, Vec3};
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
-use wavefront::geometry::offset::offset_origin;
 use wavefront::geometry::sphere::{intersect_naive, intersect_stable};
 use wavefront::mesh::TriangleMesh;
 use wavefront::queue::{HitColumns, PrimId, RayItem, RayQueue, SampleSlot};
 use wavefront::scene::builtin::spheres;
-use wavefront::scene::{
-    Material, MeshRef, OffsetMethod, PointLight, RenderMode, Scene, Sphere, TreeSource,
-};
+use wavefront::scene::{Material, MeshRef, PointLight, RenderMode, Scene, Sphere, TreeSource};
 use wavefront::stages::intersect::intersect_closest;
 use wavefront::{RenderOptions, World, render};
 
@@ -225,8 +222,8 @@ fn secondary_rays_leaving_spheres_far_out_never_rehit_them() {
                 continue;
             }
             tested += 1;
-            let (p, n, _) = world.surface(prim, eye, d, t);
-            let o = offset_origin(p, n, OffsetMethod::ScaleAware);
+            let surface = world.surface(prim, eye, d, t);
+            let (p, n, o) = (surface.point, surface.normal, surface.spawn);
             // Reflection off a convex surface from outside never meets it again.
             let r = d - 2.0 * d.dot(n) * n;
             let (_, again) = world.intersect_closest(o, r, f32::INFINITY);
@@ -282,8 +279,8 @@ fn secondary_rays_leaving_triangles_far_out_never_rehit_them() {
                 prim.is_hit(),
                 "ray aimed inside the quad missed at scale {scale}"
             );
-            let (p, n, _) = world.surface(prim, eye, d, t);
-            let o = offset_origin(p, n, OffsetMethod::ScaleAware);
+            let surface = world.surface(prim, eye, d, t);
+            let (p, n, o) = (surface.point, surface.normal, surface.spawn);
             let r = d - 2.0 * d.dot(n) * n;
             assert!(
                 !world.intersect_closest(o, r, f32::INFINITY).1.is_hit(),

@@ -13,31 +13,34 @@ use crate::scene::OffsetMethod;
 const ORIGIN: f32 = 1.0 / 32.0;
 /// Float-space offset scale near the origin.
 const FLOAT_SCALE: f32 = 1.0 / 65536.0;
-/// Ulps per unit of normal.
-const INT_SCALE: f32 = 256.0;
+/// Offset in ulps for points whose error is a few ulps: hits re-projected onto spheres and planes.
+pub const EXACT_POINT_ULPS: f32 = 32.0;
+/// Offset in ulps for points computed as `o + t·d` (Wächter & Binder's value).
+pub const RAY_POINT_ULPS: f32 = 256.0;
 /// The naive fixed epsilon, for the error report only.
 pub const FIXED_EPSILON: f32 = 1e-4;
 
-/// `p` moved off the surface to the side `n` points to. `n` need not be normalised exactly but
-/// should have length about 1.
+/// `p` moved off the surface to the side `n` points to, by `ulps` ulps of each coordinate per
+/// unit of normal (the point's error bound, see [`EXACT_POINT_ULPS`] and [`RAY_POINT_ULPS`]).
+/// `n` should have length about 1.
 #[inline]
-pub fn offset_origin(p: Vec3, n: Vec3, method: OffsetMethod) -> Vec3 {
+pub fn offset_origin(p: Vec3, n: Vec3, ulps: f32, method: OffsetMethod) -> Vec3 {
     match method {
         OffsetMethod::ScaleAware => Vec3::new(
-            offset_coord(p.x, n.x),
-            offset_coord(p.y, n.y),
-            offset_coord(p.z, n.z),
+            offset_coord(p.x, n.x, ulps),
+            offset_coord(p.y, n.y, ulps),
+            offset_coord(p.z, n.z, ulps),
         ),
         OffsetMethod::FixedEpsilon => p + FIXED_EPSILON * n,
     }
 }
 
 #[inline]
-fn offset_coord(p: f32, n: f32) -> f32 {
+fn offset_coord(p: f32, n: f32, ulps: f32) -> f32 {
     if p.abs() < ORIGIN {
         return p + FLOAT_SCALE * n;
     }
-    let of_i = (INT_SCALE * n) as i32;
+    let of_i = (ulps * n) as i32;
     // Moving the bit pattern away from zero grows |p|, so the step's sign follows p's.
     let step = if p < 0.0 { -of_i } else { of_i };
     let moved = f32::from_bits((p.to_bits() as i32).wrapping_add(step) as u32);
@@ -53,10 +56,10 @@ mod tests {
         for scale in [1e-3f32, 1.0, 1e4, 1e7] {
             for n in [Vec3::X, Vec3::NEG_X, Vec3::new(0.6, -0.8, 0.0)] {
                 let p = Vec3::splat(scale);
-                let q = offset_origin(p, n, OffsetMethod::ScaleAware);
+                let q = offset_origin(p, n, EXACT_POINT_ULPS, OffsetMethod::ScaleAware);
                 assert!((q - p).dot(n) > 0.0, "scale {scale} n {n}");
                 let p = -p;
-                let q = offset_origin(p, n, OffsetMethod::ScaleAware);
+                let q = offset_origin(p, n, EXACT_POINT_ULPS, OffsetMethod::ScaleAware);
                 assert!((q - p).dot(n) > 0.0, "scale -{scale} n {n}");
             }
         }
@@ -64,8 +67,16 @@ mod tests {
 
     #[test]
     fn offset_grows_with_magnitude() {
-        let small = offset_origin(Vec3::splat(1.0), Vec3::X, OffsetMethod::ScaleAware).x - 1.0;
-        let big = offset_origin(Vec3::splat(1e4), Vec3::X, OffsetMethod::ScaleAware).x - 1e4;
+        let off = |p: f32| {
+            offset_origin(
+                Vec3::splat(p),
+                Vec3::X,
+                RAY_POINT_ULPS,
+                OffsetMethod::ScaleAware,
+            )
+            .x - p
+        };
+        let (small, big) = (off(1.0), off(1e4));
         assert!(big > 1000.0 * small);
     }
 }

@@ -69,8 +69,10 @@ impl WatertightRay {
     /// `None`. Both faces hit; edges shared by two triangles are hit by at least one of them.
     #[inline(always)]
     pub fn intersect(&self, p0: [f32; 3], p1: [f32; 3], p2: [f32; 3], t_max: f32) -> Option<f32> {
-        let o = self.origin;
-        let (kx, ky, kz) = (self.kx, self.ky, self.kz);
+        let o = self.origin.to_array();
+        // `min(2)` is a no-op for rays made by `new`; it lets the compiler drop the bounds
+        // checks on the nine permuted reads below (the fields are public).
+        let (kx, ky, kz) = (self.kx.min(2), self.ky.min(2), self.kz.min(2));
         let a = [p0[kx] - o[kx], p0[ky] - o[ky], p0[kz] - o[kz]];
         let b = [p1[kx] - o[kx], p1[ky] - o[ky], p1[kz] - o[kz]];
         let c = [p2[kx] - o[kx], p2[ky] - o[ky], p2[kz] - o[kz]];
@@ -109,6 +111,54 @@ impl WatertightRay {
     }
 }
 
+/// A ray prepared for one ray/triangle test: traversal is generic over it, so the default
+/// (watertight) path is monomorphised and pays nothing for the alternative.
+pub trait TriangleRay: Sized {
+    /// Prepares a ray; `None` when the direction cannot hit anything.
+    fn prepare(origin: Vec3, dir: Vec3) -> Option<Self>;
+    /// Hit distance `t` with `0 < t < t_max` against triangle `(p0, p1, p2)`, or `None`.
+    fn hit(&self, p0: [f32; 3], p1: [f32; 3], p2: [f32; 3], t_max: f32) -> Option<f32>;
+}
+
+impl TriangleRay for WatertightRay {
+    #[inline(always)]
+    fn prepare(origin: Vec3, dir: Vec3) -> Option<Self> {
+        WatertightRay::new(origin, dir)
+    }
+
+    #[inline(always)]
+    fn hit(&self, p0: [f32; 3], p1: [f32; 3], p2: [f32; 3], t_max: f32) -> Option<f32> {
+        self.intersect(p0, p1, p2, t_max)
+    }
+}
+
+/// A ray for the Möller–Trumbore test (see [`intersect_moller_trumbore`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MollerTrumboreRay {
+    /// Ray origin.
+    pub origin: Vec3,
+    /// Ray direction (unnormalised).
+    pub dir: Vec3,
+}
+
+impl TriangleRay for MollerTrumboreRay {
+    #[inline(always)]
+    fn prepare(origin: Vec3, dir: Vec3) -> Option<Self> {
+        (origin.is_finite() && dir.is_finite() && dir != Vec3::ZERO)
+            .then_some(MollerTrumboreRay { origin, dir })
+    }
+
+    #[inline(always)]
+    fn hit(&self, p0: [f32; 3], p1: [f32; 3], p2: [f32; 3], t_max: f32) -> Option<f32> {
+        intersect_moller_trumbore(
+            self.origin,
+            self.dir,
+            [p0.into(), p1.into(), p2.into()],
+            t_max,
+        )
+    }
+}
+
 /// Watertight intersection of one ray with one triangle (convenience wrapper; traversal should
 /// reuse a [`WatertightRay`]).
 pub fn intersect_watertight(origin: Vec3, dir: Vec3, tri: [Vec3; 3], t_max: f32) -> Option<f32> {
@@ -122,6 +172,7 @@ pub fn intersect_watertight(origin: Vec3, dir: Vec3, tri: [Vec3; 3], t_max: f32)
 
 /// Möller–Trumbore intersection (not watertight; kept only to compare against the default
 /// test). Same conventions: `0 < t < t_max`, zero determinant never hits, never NaN.
+#[inline]
 pub fn intersect_moller_trumbore(
     origin: Vec3,
     dir: Vec3,

@@ -54,6 +54,8 @@ pub struct HitQueue {
     pub normal: Vec<Vec3>,
     /// Material indices (written by shade).
     pub material: Vec<u32>,
+    /// Origins for rays leaving each hit, offset off the surface (written by shade).
+    pub spawn: Vec<Vec3>,
 }
 
 impl HitQueue {
@@ -78,5 +80,6 @@ impl HitQueue {
         self.point.clear();
         self.normal.clear();
         self.material.clear();
+        self.spawn.clear();
     }
 }

@@ -3,7 +3,7 @@
 //! | queue | rows are | columns |
 //! |---|---|---|
 //! | [`RayQueue`] | rays to trace at one depth | `origin`, `direction`, `t_max`, `weight`, `slot` |
-//! | [`HitQueue`] | rays that hit something | the ray columns, `t`, `prim`; then `point`, `normal`, `material` written by shade |
+//! | [`HitQueue`] | rays that hit something | the ray columns, `t`, `prim`; then `point`, `normal`, `material`, `spawn` written by shade |
 //! | [`ShadowQueue`] | shadow rays toward one light | `origin`, `direction`, `t_max`, `radiance`, `slot` |
 //!
 //! Every queue keeps its rows in ascending [`SampleSlot`] order: generation emits slots in order and

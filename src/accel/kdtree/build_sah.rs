@@ -2,86 +2,124 @@
 //! for ray tracing, and on doing that in O(N log N)").
 //!
 //! Each node carries its triangles' bounds clipped to the node box and, per axis, the split
-//! events (start / planar / end) sorted once at the root and kept sorted by filtering and merging
-//! on the way down. A sweep per axis finds the cheapest plane; empty space gets a bonus; a node
-//! becomes a leaf when splitting costs more than intersecting all its triangles.
+//! events (end / planar / start) sorted once at the root and kept sorted by filtering and merging
+//! on the way down; nodes of at most [`SMALL`] triangles regenerate and sort their events instead
+//! (cheaper at that size) and bound straddling triangles by box intersection rather than exact
+//! clipping. A sweep per axis finds the cheapest plane; empty space gets a bonus; a node
+//! becomes a leaf when splitting costs more than intersecting all its triangles, or at the depth
+//! cap `8 + 1.3·log2 N` (pbrt).
 //!
-//! Boxes are closed, as in the midpoint builder and `validate()`: a triangle touching the split
-//! plane goes to both sides. So that empty space can still be cut off exactly, candidate planes
-//! are evaluated at every event position `p` and one float step on either side of it.
+//! Classification follows the paper: a triangle whose (clipped) extent only touches the plane
+//! goes to the one side it lies on, and a triangle lying IN the plane goes to the side that makes
+//! the split cheaper. `validate()` checks exactly this contract (positive-area overlap).
+//!
+//! Events are packed in one `u64` each (`ordered position bits << 32 | kind << 30 | triangle`),
+//! so sorting and merging compare plain integers. Output nodes are written directly in
+//! depth-first order; subtrees built in parallel (`rayon::join`) are appended with their indices
+//! shifted, so the result does not depend on the thread count.
 
-use super::overlap::{Aabb, clip_bounds, tri_box_overlap};
-use super::{
-    BuildNode, COST_INTERSECT, COST_TRAVERSAL, MAX_BUILD_DEPTH, area, split_box, tri_verts,
-};
+use super::node::KdNode;
+use super::overlap::{Aabb, clip_bounds};
+use super::{COST_INTERSECT, COST_TRAVERSAL, MAX_BUILD_DEPTH, split_box, tri_verts};
 use crate::mesh::TriangleMesh;
 
 /// Cost factor applied when one side of a split is empty (20 % empty-space bonus).
 const EMPTY_FACTOR: f32 = 0.8;
 /// Smallest empty slab (as a fraction of the node's extent on the split axis) that earns the
-/// bonus; without it, zero-width slivers would be cut off forever.
-const EMPTY_MIN_FRACTION: f32 = 0.05;
+/// bonus, so that thin slivers of empty space are not cut off for nothing.
+const EMPTY_MIN_FRACTION: f32 = 0.02;
 /// Nodes with more triangles than this build their children in parallel.
-const PARALLEL_MIN: usize = 1024;
+const PARALLEL_MIN: usize = 4096;
+/// Nodes with at most this many triangles are built by [`node_small`]: events are regenerated
+/// and sorted per node in one reused scratch buffer instead of being filtered and merged, and
+/// children's triangles live on the stack, so a small subtree makes one heap allocation.
+const SMALL: usize = 48;
 
-const END: u8 = 0;
-const PLANAR: u8 = 1;
-const START: u8 = 2;
+const END: u64 = 0;
+const PLANAR: u64 = 1;
+const START: u64 = 2;
 
-/// One split candidate event: triangle `tri` (node-local index) starts, ends or lies flat at `pos`.
-#[derive(Clone, Copy, Debug)]
-struct Event {
-    pos: f32,
-    kind: u8,
-    tri: u32,
+/// Maps an `f32` to a `u32` with the same order (`-0.0` must be normalised to `+0.0` first).
+#[inline]
+fn ord(f: f32) -> u32 {
+    let b = f.to_bits();
+    if b >> 31 == 1 { !b } else { b | 0x8000_0000 }
+}
+
+/// Inverse of [`ord`].
+#[inline]
+fn unord(u: u32) -> f32 {
+    f32::from_bits(if u >> 31 == 1 { u & 0x7fff_ffff } else { !u })
 }
 
 #[inline]
-fn event_less(a: &Event, b: &Event) -> bool {
-    (a.pos, a.kind, a.tri) < (b.pos, b.kind, b.tri)
+fn event(pos: f32, kind: u64, tri: u32) -> u64 {
+    ((ord(pos) as u64) << 32) | (kind << 30) | tri as u64
 }
 
-fn sort_events(v: &mut [Event]) {
-    v.sort_unstable_by(|a, b| {
-        a.pos
-            .total_cmp(&b.pos)
-            .then(a.kind.cmp(&b.kind))
-            .then(a.tri.cmp(&b.tri))
-    });
-}
-
-/// Triangles of one node: global ids, bounds clipped to the node box, sorted events per axis.
-struct Work {
-    ids: Vec<u32>,
-    bounds: Vec<Aabb>,
-    events: [Vec<Event>; 3],
-}
-
-fn push_events(local: u32, b: &Aabb, events: &mut [Vec<Event>; 3]) {
-    for (a, ev) in events.iter_mut().enumerate() {
-        if b.0[a] == b.1[a] {
-            ev.push(Event {
-                pos: b.0[a],
-                kind: PLANAR,
-                tri: local,
-            });
-        } else {
-            ev.push(Event {
-                pos: b.0[a],
-                kind: START,
-                tri: local,
-            });
-            ev.push(Event {
-                pos: b.1[a],
-                kind: END,
-                tri: local,
-            });
-        }
+/// Pushes the events of one triangle's bounds on `axis`.
+#[inline]
+fn push_events(out: &mut Vec<u64>, b: &Aabb, axis: usize, tri: u32) {
+    let (lo, hi) = (b.0[axis], b.1[axis]);
+    if lo == hi {
+        out.push(event(lo, PLANAR, tri));
+    } else {
+        out.push(event(lo, START, tri));
+        out.push(event(hi, END, tri));
     }
 }
 
+/// `-0.0` becomes `+0.0`, so equal positions have equal event keys.
+#[inline]
+fn norm(b: Aabb) -> Aabb {
+    (b.0.map(|x| x + 0.0), b.1.map(|x| x + 0.0))
+}
+
+/// Flat builder output: nodes in depth-first pre-order and the leaves' triangle lists.
+#[derive(Default)]
+pub(crate) struct Flat {
+    pub(crate) nodes: Vec<KdNode>,
+    pub(crate) tris: Vec<u32>,
+}
+
+impl Flat {
+    /// Appends a subtree built separately, shifting its child and triangle offsets.
+    fn append(&mut self, sub: Flat) {
+        let nb = self.nodes.len() as u32;
+        let tb = self.tris.len() as u32;
+        self.nodes.extend(sub.nodes.into_iter().map(|n| {
+            if n.is_leaf() {
+                KdNode::leaf(n.offset() + tb, n.count())
+            } else {
+                KdNode::inner(n.axis(), n.split(), n.right() + nb)
+            }
+        }));
+        self.tris.extend_from_slice(&sub.tris);
+    }
+
+    fn leaf(&mut self, ids: &[u32]) {
+        let start = self.tris.len();
+        self.nodes
+            .push(KdNode::leaf(start as u32, ids.len() as u32));
+        self.tris.extend_from_slice(ids);
+        self.tris[start..].sort_unstable();
+    }
+}
+
+/// Triangles of one node: global ids, bounds clipped to the node box, sorted events per axis
+/// (left empty for nodes of at most [`SMALL`] triangles, which make their own).
+struct Work {
+    ids: Vec<u32>,
+    bounds: Vec<Aabb>,
+    events: [Vec<u64>; 3],
+}
+
 /// Builds the SAH tree over `tris` (non-degenerate triangle indices) in box `root`.
-pub(crate) fn build(mesh: &TriangleMesh, root: Aabb, tris: Vec<u32>) -> BuildNode {
+pub(crate) fn build(mesh: &TriangleMesh, root: Aabb, tris: Vec<u32>) -> Flat {
+    assert!(
+        tris.len() < 1 << 30,
+        "too many triangles for the SAH builder"
+    );
     let bounds: Vec<Aabb> = tris
         .iter()
         .map(|&t| {
@@ -93,26 +131,28 @@ pub(crate) fn build(mesh: &TriangleMesh, root: Aabb, tris: Vec<u32>) -> BuildNod
                     b.1[k] = b.1[k].max(c);
                 }
             }
-            b
+            norm(b)
         })
         .collect();
-    let mut events: [Vec<Event>; 3] = Default::default();
-    for (i, b) in bounds.iter().enumerate() {
-        push_events(i as u32, b, &mut events);
-    }
-    {
-        let [e0, e1, e2] = &mut events;
-        rayon::join(
-            || sort_events(e0),
-            || rayon::join(|| sort_events(e1), || sort_events(e2)),
-        );
-    }
+    let make = |axis: usize| {
+        let mut ev = Vec::with_capacity(2 * bounds.len());
+        for (i, b) in bounds.iter().enumerate() {
+            push_events(&mut ev, b, axis, i as u32);
+        }
+        ev.sort_unstable();
+        ev
+    };
+    let (e0, (e1, e2)) = rayon::join(|| make(0), || rayon::join(|| make(1), || make(2)));
     let work = Work {
         ids: tris,
         bounds,
-        events,
+        events: [e0, e1, e2],
     };
-    node(mesh, root, work, 0)
+    let n = work.ids.len().max(1) as f32;
+    let max_depth = ((8.0 + 1.3 * n.log2()) as usize).min(MAX_BUILD_DEPTH);
+    let mut out = Flat::default();
+    node(mesh, root, work, 0, max_depth, &mut out);
+    out
 }
 
 /// Best split found by the sweep.
@@ -121,140 +161,103 @@ struct Split {
     cost: f32,
     axis: usize,
     pos: f32,
+    /// Triangles lying in the plane go left (else right).
+    planar_left: bool,
 }
 
-fn find_split(w: &Work, bx: &Aabb) -> Option<Split> {
-    let n = w.ids.len();
-    let sa = area(bx);
+fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
+    let ext = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
+    let sa = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0]);
     if sa.is_nan() || sa <= 0.0 {
         return None;
     }
-    let inv_sa = 1.0 / sa;
+    let ki = COST_INTERSECT / sa;
     let mut best: Option<Split> = None;
+    let mut best_cost = f32::INFINITY;
     for axis in 0..3 {
         let (lo, hi) = (bx.0[axis], bx.1[axis]);
         if lo >= hi {
             continue;
         }
-        let d1 = bx.1[(axis + 1) % 3] - bx.0[(axis + 1) % 3];
-        let d2 = bx.1[(axis + 2) % 3] - bx.0[(axis + 2) % 3];
-        let mut consider = |pos: f32, nl: usize, nr: usize| {
-            if !(pos > lo && pos < hi) {
-                return;
-            }
-            let sl = 2.0 * (d1 * d2 + (pos - lo) * (d1 + d2));
-            let sr = 2.0 * (d1 * d2 + (hi - pos) * (d1 + d2));
-            let mut cost =
-                COST_TRAVERSAL + COST_INTERSECT * (sl * nl as f32 + sr * nr as f32) * inv_sa;
-            // Bonus only for a real slab of empty space, not a sliver.
-            let empty_width = if nl == 0 {
-                pos - lo
-            } else if nr == 0 {
-                hi - pos
-            } else {
-                0.0
-            };
-            if empty_width >= EMPTY_MIN_FRACTION * (hi - lo) {
-                cost *= EMPTY_FACTOR;
-            }
-            if best.is_none_or(|b| cost < b.cost) {
-                best = Some(Split { cost, axis, pos });
-            }
-        };
-        let ev = &w.events[axis];
-        // Counts over triangle bounds [a, b]: left of plane q holds a <= q, right holds b >= q.
-        let mut starts_before = 0usize; // triangles with a < p
-        let mut ends_before = 0usize; // triangles with b < p
-        let mut prev: Option<(f32, usize)> = None; // previous group position and its ends
+        let d1 = ext[(axis + 1) % 3];
+        let d2 = ext[(axis + 2) % 3];
+        let (cap, perim) = (2.0 * d1 * d2, 2.0 * (d1 + d2));
+        let min_empty = EMPTY_MIN_FRACTION * (hi - lo);
+        let ev = events[axis];
+        let (mut nl, mut nr) = (0usize, n);
         let mut i = 0;
         while i < ev.len() {
-            let p = ev[i].pos;
+            let key = ev[i] >> 32;
             let (mut pe, mut pp, mut ps) = (0usize, 0usize, 0usize);
-            while i < ev.len() && ev[i].pos == p {
-                match ev[i].kind {
+            while i < ev.len() && ev[i] >> 32 == key {
+                match (ev[i] >> 30) & 3 {
                     END => pe += 1,
                     PLANAR => pp += 1,
                     _ => ps += 1,
                 }
                 i += 1;
             }
-            // Just below the first start: empty space on the left.
-            let q = p.next_down();
-            let ends_at_q = match prev {
-                Some((pos, e)) if pos == q => e,
-                _ => 0,
-            };
-            if starts_before == 0 {
-                consider(q, 0, n - (ends_before - ends_at_q));
+            nr -= pe + pp;
+            let p = unord(key as u32);
+            if p > lo && p < hi {
+                let (wl, wr) = (p - lo, hi - p);
+                let sl = cap + wl * perim;
+                let sr = cap + wr * perim;
+                let cost = |l: usize, r: usize| {
+                    let c = COST_TRAVERSAL + ki * (sl * l as f32 + sr * r as f32);
+                    if (l == 0 && wl >= min_empty) || (r == 0 && wr >= min_empty) {
+                        c * EMPTY_FACTOR
+                    } else {
+                        c
+                    }
+                };
+                let (c, planar_left) = if pp == 0 {
+                    (cost(nl, nr), true)
+                } else {
+                    let cl = cost(nl + pp, nr);
+                    let cr = cost(nl, nr + pp);
+                    if cl <= cr { (cl, true) } else { (cr, false) }
+                };
+                if c < best_cost {
+                    best_cost = c;
+                    best = Some(Split {
+                        cost: c,
+                        axis,
+                        pos: p,
+                        planar_left,
+                    });
+                }
             }
-            // At p: triangles touching p go to both sides.
-            consider(p, starts_before + ps + pp, n - ends_before);
-            // Just above the last end: empty space on the right.
-            let q = p.next_up();
-            let starts_at_q = if i < ev.len() && ev[i].pos == q {
-                ev[i..]
-                    .iter()
-                    .take_while(|e| e.pos == q)
-                    .filter(|e| e.kind != END)
-                    .count()
-            } else {
-                0
-            };
-            starts_before += ps + pp;
-            ends_before += pe + pp;
-            if ends_before == n {
-                consider(q, starts_before + starts_at_q, 0);
-            }
-            prev = Some((p, pe + pp));
+            nl += ps + pp;
         }
     }
     best
 }
 
-fn node(mesh: &TriangleMesh, bx: Aabb, w: Work, depth: usize) -> BuildNode {
+/// Builds the subtree for `w` in box `bx`, appending its nodes to `out` in pre-order.
+fn node(mesh: &TriangleMesh, bx: Aabb, w: Work, depth: usize, max_depth: usize, out: &mut Flat) {
     let n = w.ids.len();
-    let leaf = |w: Work| {
-        let mut ids = w.ids;
-        ids.sort_unstable();
-        BuildNode::Leaf(ids)
-    };
-    if n == 0 || depth >= MAX_BUILD_DEPTH {
-        return leaf(w);
+    if n <= SMALL {
+        let mut ev = Vec::with_capacity(6 * SMALL);
+        node_small(bx, &w.ids, &w.bounds, depth, max_depth, out, &mut ev);
+        return;
     }
-    let Some(split) = find_split(&w, &bx) else {
-        return leaf(w);
+    let split = if depth >= max_depth {
+        None
+    } else {
+        let [e0, e1, e2] = &w.events;
+        find_split(n, [e0, e1, e2], &bx).filter(|s| s.cost < COST_INTERSECT * n as f32)
     };
-    if split.cost >= COST_INTERSECT * n as f32 {
-        return leaf(w);
-    }
+    let Some(split) = split else {
+        out.leaf(&w.ids);
+        return;
+    };
     let (axis, s) = (split.axis, split.pos);
     let (lb, rb) = split_box(&bx, axis, s);
-    // Classify: 1 = left only, 2 = right only, 3 = both.
-    let tol = 4.0 * f32::EPSILON * s.abs().max(bx.1[axis] - bx.0[axis]);
-    let side: Vec<u8> = w
-        .bounds
-        .iter()
-        .zip(&w.ids)
-        .map(|(b, &id)| {
-            if b.1[axis] < s {
-                // Safety net: agree with the exact overlap test used by validate().
-                if s - b.1[axis] <= tol && tri_box_overlap(&tri_verts(mesh, id), &rb) {
-                    3
-                } else {
-                    1
-                }
-            } else if b.0[axis] > s {
-                if b.0[axis] - s <= tol && tri_box_overlap(&tri_verts(mesh, id), &lb) {
-                    3
-                } else {
-                    2
-                }
-            } else {
-                3
-            }
-        })
-        .collect();
-    let (left, right) = if n > PARALLEL_MIN {
+    // Classify: 1 = left only, 2 = right only, 3 = both (straddles the plane).
+    let side: Vec<u8> = w.bounds.iter().map(|b| classify(b, &split)).collect();
+    let large = n > PARALLEL_MIN;
+    let (left, right) = if large {
         rayon::join(
             || child(mesh, &w, &side, 1, &lb),
             || child(mesh, &w, &side, 2, &rb),
@@ -265,31 +268,143 @@ fn node(mesh: &TriangleMesh, bx: Aabb, w: Work, depth: usize) -> BuildNode {
             child(mesh, &w, &side, 2, &rb),
         )
     };
-    if left.ids.len() == n && right.ids.len() == n {
-        // No progress possible (every triangle straddles); stop here.
-        return leaf(w);
-    }
+    drop(side);
     drop(w);
-    let (l, r) = if n > PARALLEL_MIN {
+    let here = out.nodes.len();
+    out.nodes.push(KdNode::inner(axis, s, 0));
+    if large {
+        let mut sub = Flat::default();
         rayon::join(
-            || node(mesh, lb, left, depth + 1),
-            || node(mesh, rb, right, depth + 1),
-        )
+            || node(mesh, lb, left, depth + 1, max_depth, out),
+            || node(mesh, rb, right, depth + 1, max_depth, &mut sub),
+        );
+        out.nodes[here] = KdNode::inner(axis, s, out.nodes.len() as u32);
+        out.append(sub);
     } else {
-        (
-            node(mesh, lb, left, depth + 1),
-            node(mesh, rb, right, depth + 1),
-        )
-    };
-    BuildNode::Inner {
-        axis,
-        split: s,
-        left: Box::new(l),
-        right: Box::new(r),
+        node(mesh, lb, left, depth + 1, max_depth, out);
+        out.nodes[here] = KdNode::inner(axis, s, out.nodes.len() as u32);
+        node(mesh, rb, right, depth + 1, max_depth, out);
     }
 }
 
-/// Builds the work set of one child: triangles on side `me` keep their events (filtered,
+/// Side of each triangle for a split: 1 = left only, 2 = right only, 3 = both (straddles).
+#[inline]
+fn classify(b: &Aabb, split: &Split) -> u8 {
+    let (a, c, s) = (b.0[split.axis], b.1[split.axis], split.pos);
+    if a == s && c == s {
+        if split.planar_left { 1 } else { 2 }
+    } else if c <= s {
+        1
+    } else if a >= s {
+        2
+    } else {
+        3
+    }
+}
+
+/// Bounds of triangle `id` clipped to child box `cb` (conservative fallback: its old bounds
+/// intersected with the box).
+#[inline]
+fn clip(mesh: &TriangleMesh, id: u32, old: &Aabb, cb: &Aabb) -> Aabb {
+    norm(clip_bounds(&tri_verts(mesh, id), cb).unwrap_or_else(|| clip_to_box(old, cb)))
+}
+
+/// Bounds intersected with a box: a conservative (looser) stand-in for exact clipping.
+#[inline]
+fn clip_to_box(old: &Aabb, cb: &Aabb) -> Aabb {
+    let mut b = *old;
+    for k in 0..3 {
+        b.0[k] = b.0[k].max(cb.0[k]);
+        b.1[k] = b.1[k].min(cb.1[k]).max(b.0[k]);
+    }
+    b
+}
+
+/// [`node`] for at most [`SMALL`] triangles: children's triangles live in fixed arrays on the
+/// stack and the events in one scratch buffer `ev` reused by the whole subtree.
+/// Straddling triangles' bounds are intersected with the child box rather than clipped exactly:
+/// measured on Sibenik, exact clipping in these small nodes costs a third of the build time
+/// for a 3 % lower SAH cost.
+fn node_small(
+    bx: Aabb,
+    ids: &[u32],
+    bounds: &[Aabb],
+    depth: usize,
+    max_depth: usize,
+    out: &mut Flat,
+    ev: &mut Vec<u64>,
+) {
+    let n = ids.len();
+    debug_assert!(n <= SMALL && bounds.len() == n);
+    let split = if n == 0 || depth >= max_depth {
+        None
+    } else {
+        // One scratch buffer for the whole small subtree: the three axes' events, back to back.
+        ev.clear();
+        let mut end = [0usize; 3];
+        for (axis, end) in end.iter_mut().enumerate() {
+            let start = ev.len();
+            for (i, b) in bounds.iter().enumerate() {
+                push_events(ev, b, axis, i as u32);
+            }
+            ev[start..].sort_unstable();
+            *end = ev.len();
+        }
+        find_split(
+            n,
+            [&ev[..end[0]], &ev[end[0]..end[1]], &ev[end[1]..end[2]]],
+            &bx,
+        )
+        .filter(|s| s.cost < COST_INTERSECT * n as f32)
+    };
+    let Some(split) = split else {
+        out.leaf(ids);
+        return;
+    };
+    let (axis, s) = (split.axis, split.pos);
+    let (lb, rb) = split_box(&bx, axis, s);
+    let mut l_ids = [0u32; SMALL];
+    let mut r_ids = [0u32; SMALL];
+    let mut l_bounds = [([0.0f32; 3], [0.0f32; 3]); SMALL];
+    let mut r_bounds = [([0.0f32; 3], [0.0f32; 3]); SMALL];
+    let (mut nl, mut nr) = (0usize, 0usize);
+    for (&id, b) in ids.iter().zip(bounds) {
+        let side = classify(b, &split);
+        if side & 1 != 0 {
+            l_ids[nl] = id;
+            l_bounds[nl] = if side == 3 { clip_to_box(b, &lb) } else { *b };
+            nl += 1;
+        }
+        if side & 2 != 0 {
+            r_ids[nr] = id;
+            r_bounds[nr] = if side == 3 { clip_to_box(b, &rb) } else { *b };
+            nr += 1;
+        }
+    }
+    let here = out.nodes.len();
+    out.nodes.push(KdNode::inner(axis, s, 0));
+    node_small(
+        lb,
+        &l_ids[..nl],
+        &l_bounds[..nl],
+        depth + 1,
+        max_depth,
+        out,
+        ev,
+    );
+    out.nodes[here] = KdNode::inner(axis, s, out.nodes.len() as u32);
+    node_small(
+        rb,
+        &r_ids[..nr],
+        &r_bounds[..nr],
+        depth + 1,
+        max_depth,
+        out,
+        ev,
+    );
+}
+
+/// Builds the work set of one child: triangles on side `me` only keep their events (filtered,
 /// still sorted); straddling triangles are clipped to the child box and their new events are
 /// sorted and merged in.
 fn child(mesh: &TriangleMesh, w: &Work, side: &[u8], me: u8, cb: &Aabb) -> Work {
@@ -297,7 +412,7 @@ fn child(mesh: &TriangleMesh, w: &Work, side: &[u8], me: u8, cb: &Aabb) -> Work 
     let count = side.iter().filter(|&&s| s & me != 0).count();
     let mut ids = Vec::with_capacity(count);
     let mut bounds = Vec::with_capacity(count);
-    let mut new_events: [Vec<Event>; 3] = Default::default();
+    let mut straddling = Vec::new();
     for (i, &s) in side.iter().enumerate() {
         if s & me == 0 {
             continue;
@@ -306,32 +421,44 @@ fn child(mesh: &TriangleMesh, w: &Work, side: &[u8], me: u8, cb: &Aabb) -> Work 
         remap[i] = local;
         ids.push(w.ids[i]);
         if s == 3 {
-            let old = w.bounds[i];
-            let b = clip_bounds(&tri_verts(mesh, w.ids[i]), cb).unwrap_or_else(|| {
-                let mut b = old;
-                for k in 0..3 {
-                    b.0[k] = b.0[k].max(cb.0[k]);
-                    b.1[k] = b.1[k].min(cb.1[k]).max(b.0[k]);
-                }
-                b
-            });
-            push_events(local, &b, &mut new_events);
-            bounds.push(b);
+            bounds.push(clip(mesh, w.ids[i], &w.bounds[i], cb));
+            straddling.push(local);
         } else {
             bounds.push(w.bounds[i]);
         }
     }
-    let events = std::array::from_fn(|a| {
-        let kept = w.events[a].iter().filter_map(|e| {
-            let i = e.tri as usize;
-            (side[i] == me).then(|| Event {
-                tri: remap[i],
-                ..*e
-            })
-        });
-        let mut fresh = std::mem::take(&mut new_events[a]);
-        sort_events(&mut fresh);
-        merge(kept, fresh, 2 * count)
+    if count <= SMALL {
+        // Built by `node_small`, which makes its own events.
+        return Work {
+            ids,
+            bounds,
+            events: Default::default(),
+        };
+    }
+    let mut fresh = Vec::with_capacity(2 * straddling.len());
+    let events = std::array::from_fn(|axis| {
+        fresh.clear();
+        for &l in &straddling {
+            push_events(&mut fresh, &bounds[l as usize], axis, l);
+        }
+        fresh.sort_unstable();
+        let old = &w.events[axis];
+        let mut out = Vec::with_capacity(2 * (count - straddling.len()) + fresh.len());
+        let mut f = 0;
+        for &e in old {
+            let i = (e & 0x3fff_ffff) as usize;
+            if side[i] != me {
+                continue;
+            }
+            let e = (e & !0x3fff_ffff) | remap[i] as u64;
+            while f < fresh.len() && fresh[f] < e {
+                out.push(fresh[f]);
+                f += 1;
+            }
+            out.push(e);
+        }
+        out.extend_from_slice(&fresh[f..]);
+        out
     });
     Work {
         ids,
@@ -340,27 +467,9 @@ fn child(mesh: &TriangleMesh, w: &Work, side: &[u8], me: u8, cb: &Aabb) -> Work 
     }
 }
 
-/// Merges two event sequences sorted by `(pos, kind, tri)`; `capacity` bounds the total.
-fn merge(kept: impl Iterator<Item = Event>, fresh: Vec<Event>, capacity: usize) -> Vec<Event> {
-    if fresh.is_empty() {
-        let mut out = Vec::with_capacity(capacity);
-        out.extend(kept);
-        return out;
-    }
-    let mut out = Vec::with_capacity(capacity);
-    let mut f = fresh.into_iter().peekable();
-    for e in kept {
-        while let Some(x) = f.next_if(|x| event_less(x, &e)) {
-            out.push(x);
-        }
-        out.push(e);
-    }
-    out.extend(f);
-    out
-}
-
 #[cfg(test)]
 mod tests {
+    use super::{ord, unord};
     use crate::accel::kdtree::{BuildMethod, KdTree};
     use crate::mesh::TriangleMesh;
 
@@ -383,6 +492,25 @@ mod tests {
     }
 
     #[test]
+    fn ordered_bits_keep_float_order() {
+        let xs = [
+            f32::NEG_INFINITY,
+            -3.5,
+            -1e-30,
+            0.0,
+            1e-30,
+            2.0,
+            f32::INFINITY,
+        ];
+        for w in xs.windows(2) {
+            assert!(ord(w[0]) < ord(w[1]), "{w:?}");
+        }
+        for x in xs {
+            assert_eq!(unord(ord(x)).to_bits(), x.to_bits());
+        }
+    }
+
+    #[test]
     fn cuts_off_empty_space_first() {
         let mesh = corner_mesh();
         let tree = KdTree::build(&mesh, BuildMethod::Sah);
@@ -395,6 +523,33 @@ mod tests {
         assert!(s.leaves > 8 && s.max_tris_per_leaf < 16, "{s}");
         // The degenerate triangle is in no leaf.
         assert!((0..tree.nodes().len()).all(|i| !tree.leaf_triangles(i).contains(&0)));
+    }
+
+    #[test]
+    fn triangles_touching_or_lying_in_the_plane_go_to_one_side() {
+        // Two stacked layers of axis-aligned squares at z = 0 and z = 1 with a gap between
+        // them; each square is two triangles. The planes at z = 0 and z = 1 hold planar
+        // triangles, which must not be duplicated.
+        let mut v = Vec::new();
+        let mut idx = Vec::new();
+        for layer in 0..2 {
+            for i in 0..16 {
+                let (x, y, z) = ((i % 4) as f32 * 2.0, (i / 4) as f32 * 2.0, layer as f32);
+                let b = v.len() as u32;
+                v.extend([
+                    [x, y, z],
+                    [x + 1.0, y, z],
+                    [x + 1.0, y + 1.0, z],
+                    [x, y + 1.0, z],
+                ]);
+                idx.extend([[b, b + 1, b + 2], [b, b + 2, b + 3]]);
+            }
+        }
+        let mesh = TriangleMesh::new(v, idx);
+        let tree = KdTree::build(&mesh, BuildMethod::Sah);
+        tree.validate(&mesh).expect("valid");
+        let s = tree.stats(&mesh);
+        assert!(s.references <= mesh.len() + mesh.len() / 4, "{s}");
     }
 
     #[test]

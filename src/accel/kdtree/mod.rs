@@ -31,7 +31,7 @@ use overlap::Aabb;
 pub use stats::KdStats;
 pub use text::TreeError;
 
-/// Deepest tree the builders produce.
+/// Deepest tree the builders produce (the SAH builder also stops at `8 + 1.3·log2 N`, as pbrt).
 pub const MAX_BUILD_DEPTH: usize = 40;
 /// Deepest tree accepted from a file (traversal's fixed stack holds one entry per level).
 pub const MAX_DEPTH: usize = 63;
@@ -118,11 +118,21 @@ impl KdTree {
             .filter(|&k| !mesh.is_degenerate(k))
             .map(|k| k as u32)
             .collect();
-        let tree = match method {
-            BuildMethod::Midpoint => build_midpoint::build(mesh, root, tris),
-            BuildMethod::Sah => build_sah::build(mesh, root, tris),
+        let mut out = match method {
+            BuildMethod::Midpoint => {
+                KdTree::from_build(&build_midpoint::build(mesh, root, tris), root, mesh.len())
+            }
+            BuildMethod::Sah => {
+                let flat = build_sah::build(mesh, root, tris);
+                KdTree {
+                    nodes: flat.nodes,
+                    tri_indices: flat.tris,
+                    root,
+                    triangle_count: mesh.len(),
+                    prepared: OnceLock::new(),
+                }
+            }
         };
-        let mut out = KdTree::from_build(&tree, root, mesh.len());
         out.prepared = OnceLock::from(Prepared::new(&out, mesh));
         out
     }

@@ -11,11 +11,47 @@ pub type Aabb = ([f32; 3], [f32; 3]);
 /// Separating-axis triangle/box overlap test (13 axes), evaluated in `f64` on the `f32` inputs.
 /// Touching counts as overlap.
 pub fn tri_box_overlap(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
+    sat(tri, bx, false)
+}
+
+/// True when the triangle meets the box in a set of positive area: it meets the OPEN box, or
+/// it lies in an axis plane within the box's slab on that axis and meets the open rectangle of
+/// the box in that plane. Touching along an edge or at a point does not count.
+///
+/// This is the builders' contract (checked by `validate()`): a triangle must be listed in every
+/// leaf it meets with positive area, except that a triangle lying in a split plane need only be
+/// listed on one side of it.
+pub fn tri_box_overlap_area(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
+    let mut b = *bx;
+    if let Some(a) = planar_axis(tri) {
+        let c = tri[0][a];
+        if c >= b.0[a] && c <= b.1[a] {
+            // Widen the slab so the triangle's plane is strictly inside: a 2-D test.
+            let pad = 1.0 + c.abs();
+            b.0[a] = c - pad;
+            b.1[a] = c + pad;
+        }
+    }
+    sat(tri, &b, true)
+}
+
+/// The axis the triangle lies flat in (all three vertices share that coordinate), if any.
+pub fn planar_axis(tri: &[[f32; 3]; 3]) -> Option<usize> {
+    (0..3).find(|&a| tri[0][a] == tri[1][a] && tri[1][a] == tri[2][a])
+}
+
+/// Separating-axis test; `open` makes touching count as separated.
+fn sat(tri: &[[f32; 3]; 3], bx: &Aabb, open: bool) -> bool {
     let (lo, hi) = bx;
     for a in 0..3 {
         let mn = tri[0][a].min(tri[1][a]).min(tri[2][a]);
         let mx = tri[0][a].max(tri[1][a]).max(tri[2][a]);
-        if mn > hi[a] || mx < lo[a] {
+        let separated = if open {
+            mn >= hi[a] || mx <= lo[a]
+        } else {
+            mn > hi[a] || mx < lo[a]
+        };
+        if separated {
             return false;
         }
     }
@@ -30,7 +66,12 @@ pub fn tri_box_overlap(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
         let p1 = n.dot(v[1]);
         let p2 = n.dot(v[2]);
         let r = h.x * n.x.abs() + h.y * n.y.abs() + h.z * n.z.abs();
-        p0.min(p1).min(p2) > r || p0.max(p1).max(p2) < -r
+        let (mn, mx) = (p0.min(p1).min(p2), p0.max(p1).max(p2));
+        if open {
+            mn >= r || mx <= -r
+        } else {
+            mn > r || mx < -r
+        }
     };
     for edge in e {
         for axis in [DVec3::X, DVec3::Y, DVec3::Z] {
@@ -141,6 +182,21 @@ mod tests {
         assert!(tri_box_overlap(&diagonal, &UNIT));
         let beside = [[2.1, 0.0, 0.5], [0.0, 2.1, 0.5], [2.1, 2.1, 0.5]];
         assert!(!tri_box_overlap(&beside, &UNIT));
+    }
+
+    #[test]
+    fn area_overlap_ignores_touching_but_keeps_faces() {
+        let inside = [[0.2, 0.2, 0.2], [0.8, 0.2, 0.7], [0.2, 0.8, 0.2]];
+        assert!(tri_box_overlap_area(&inside, &UNIT));
+        // Touches the face x = 1 along an edge only.
+        let edge = [[1.0, 0.0, 0.0], [2.0, 0.5, 0.0], [1.0, 1.0, 1.0]];
+        assert!(tri_box_overlap(&edge, &UNIT) && !tri_box_overlap_area(&edge, &UNIT));
+        // Lies in the face x = 1: positive area in the face.
+        let face = [[1.0, 0.1, 0.1], [1.0, 0.9, 0.1], [1.0, 0.1, 0.9]];
+        assert!(tri_box_overlap_area(&face, &UNIT));
+        // Lies in the face plane but beyond the box's edge y = 1.
+        let beyond = [[1.0, 1.0, 0.1], [1.0, 2.0, 0.1], [1.0, 1.0, 0.9]];
+        assert!(tri_box_overlap(&beyond, &UNIT) && !tri_box_overlap_area(&beyond, &UNIT));
     }
 
     #[test]

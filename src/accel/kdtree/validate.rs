@@ -3,10 +3,13 @@
 //! Checks that every node and child index is in range, that the tree is a proper pre-order tree
 //! within the depth limit, that children partition the parent's box at the split (the split lies
 //! inside the parent's box, closed), that every triangle index is in range, and that every
-//! non-degenerate triangle overlapping a leaf's box (by the closed triangle/box test) is listed
-//! in that leaf. Degenerate triangles are never hit, so they need not be listed.
+//! non-degenerate triangle meeting a leaf's box with positive area ([`tri_box_overlap_area`]) is
+//! listed in that leaf — except that a triangle lying IN a split plane need only be listed on one
+//! side of it (the side whose subtree lists it; the other side is then not checked for it).
+//! Every point of every triangle thus lies in the closed box of a leaf listing it, which is what
+//! traversal needs. Degenerate triangles are never hit, so they need not be listed.
 
-use super::overlap::{Aabb, tri_box_overlap};
+use super::overlap::{Aabb, tri_box_overlap, tri_box_overlap_area};
 use super::{KdTree, MAX_DEPTH, exact_root, split_box, tri_verts};
 use crate::mesh::TriangleMesh;
 
@@ -26,10 +29,12 @@ impl KdTree {
         if let Some(&t) = self.tri_indices.iter().find(|&&t| t as usize >= mesh.len()) {
             return Err(format!("triangle index {t} out of range ({})", mesh.len()));
         }
-        let candidates: Vec<u32> = (0..mesh.len() as u32)
-            .filter(|&k| !mesh.is_degenerate(k as usize))
-            .collect();
         let root = exact_root(self, mesh);
+        let candidates: Vec<u32> = (0..mesh.len() as u32)
+            .filter(|&k| {
+                !mesh.is_degenerate(k as usize) && tri_box_overlap_area(&tri_verts(mesh, k), &root)
+            })
+            .collect();
         let mut seen = 0usize;
         self.check(mesh, 0, root, candidates, 0, &mut seen)?;
         if seen != self.nodes.len() {
@@ -95,10 +100,22 @@ impl KdTree {
         let (mut l, mut r) = (Vec::new(), Vec::new());
         for t in candidates {
             let v = tri_verts(mesh, t);
-            if tri_box_overlap(&v, &lb) {
+            let in_plane = v.iter().all(|p| p[axis] == split);
+            if in_plane {
+                // Lying in the split plane: required on one side, the one that lists it.
+                if tri_box_overlap_area(&v, &lb) {
+                    if self.lists(i + 1, &lb, t, &v, depth + 1) {
+                        l.push(t);
+                    } else {
+                        r.push(t);
+                    }
+                }
+                continue;
+            }
+            if tri_box_overlap_area(&v, &lb) {
                 l.push(t);
             }
-            if tri_box_overlap(&v, &rb) {
+            if tri_box_overlap_area(&v, &rb) {
                 r.push(t);
             }
         }
@@ -125,6 +142,30 @@ impl KdTree {
         }
         *seen += seen_l + seen_r;
         Ok(())
+    }
+}
+
+impl KdTree {
+    /// True when some leaf of the subtree at `i` (box `bx`) whose closed box touches triangle
+    /// `t` lists it. Malformed subtrees answer false; `check` reports them.
+    fn lists(&self, i: usize, bx: &Aabb, t: u32, v: &[[f32; 3]; 3], depth: usize) -> bool {
+        let Some(&n) = self.nodes.get(i) else {
+            return false;
+        };
+        if depth > MAX_DEPTH || !tri_box_overlap(v, bx) {
+            return false;
+        }
+        if n.is_leaf() {
+            let start = n.offset() as usize;
+            let end = start + n.count() as usize;
+            return self
+                .tri_indices
+                .get(start..end)
+                .is_some_and(|l| l.contains(&t));
+        }
+        let (lb, rb) = split_box(bx, n.axis(), n.split());
+        self.lists(i + 1, &lb, t, v, depth + 1)
+            || self.lists(n.right() as usize, &rb, t, v, depth + 1)
     }
 }
 
@@ -164,6 +205,54 @@ mod tests {
         let tree = KdTree::read_text(text.as_bytes(), Path::new("v.kd"), 2).expect("read");
         let err = tree.validate(&mesh()).expect_err("triangle 0 missing");
         assert!(err.contains("misses triangle 0"), "{err}");
+    }
+
+    /// Triangle 0 lies in the plane x = 2 (the split below); triangle 1 is at x = 3..4.
+    fn planar_mesh() -> TriangleMesh {
+        TriangleMesh::new(
+            vec![
+                [2.0, 0.0, 0.0],
+                [2.0, 1.0, 0.0],
+                [2.0, 0.0, 1.0],
+                [3.0, 0.0, 0.0],
+                [4.0, 0.0, 0.0],
+                [4.0, 1.0, 1.0],
+            ],
+            vec![[0, 1, 2], [3, 4, 5]],
+        )
+    }
+
+    #[test]
+    fn a_triangle_in_the_split_plane_may_be_listed_on_either_side_only() {
+        let m = planar_mesh();
+        for text in [
+            "inner{ 2 0 0 4 1 1 ; 1 2 0 2 }\nleaf{ 2 0 0 2 1 1 ; 0 }\nleaf{ 2 0 0 4 1 1 ; 1 }\n",
+            "inner{ 2 0 0 4 1 1 ; 1 2 0 2.5 }\nleaf{ 2 0 0 2.5 1 1 ; 0 }\nleaf{ 2.5 0 0 4 1 1 ; 1 }\n",
+            "inner{ 2 0 0 4 1 1 ; 1 2 0 2 }\nleaf{ 2 0 0 2 1 1 ; }\nleaf{ 2 0 0 4 1 1 ; 0 1 }\n",
+        ] {
+            let tree = KdTree::read_text(text.as_bytes(), Path::new("p.kd"), 2).expect("read");
+            tree.validate(&m).expect("valid");
+        }
+    }
+
+    #[test]
+    fn a_triangle_in_the_split_plane_listed_on_neither_side_is_reported() {
+        let text =
+            "inner{ 2 0 0 4 1 1 ; 1 2 0 2 }\nleaf{ 2 0 0 2 1 1 ; }\nleaf{ 2 0 0 4 1 1 ; 1 }\n";
+        let tree = KdTree::read_text(text.as_bytes(), Path::new("p.kd"), 2).expect("read");
+        let err = tree
+            .validate(&planar_mesh())
+            .expect_err("triangle 0 missing");
+        assert!(err.contains("misses triangle 0"), "{err}");
+    }
+
+    #[test]
+    fn a_triangle_only_touching_a_leaf_need_not_be_listed() {
+        // Triangle 0 of `mesh()` touches x = 1 only at a vertex; the right leaf omits it.
+        let text =
+            "inner{ 0 0 0 4 1 1 ; 1 2 0 1 }\nleaf{ 0 0 0 1 1 1 ; 0 }\nleaf{ 1 0 0 4 1 1 ; 1 }\n";
+        let tree = KdTree::read_text(text.as_bytes(), Path::new("v.kd"), 2).expect("read");
+        tree.validate(&mesh()).expect("valid");
     }
 
     #[test]
