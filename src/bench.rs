@@ -27,6 +27,7 @@ use crate::stages::intersect::{compact_hits, intersect_closest};
 use crate::stages::reflect::spawn_reflection_rays;
 use crate::stages::shade::{ShadeScratch, shade_hit_mask, shade_hits};
 use crate::stages::shadow::intersect_occluded;
+use crate::stats::Stats;
 use crate::world::World;
 
 /// The queues one depth of the first wave read, as the schedule produced them.
@@ -57,15 +58,16 @@ pub struct Snapshot {
     pub pipeline: Pipeline,
     /// The first wave (input of `generate`).
     pub wave: Wave,
-    /// Number of waves a full frame renders (the snapshot covers the first only).
+    /// Number of waves a full frame renders (the snapshot covers the middle one only).
     pub waves: u32,
     /// One entry per depth that had rays, in depth order.
     pub depths: Vec<DepthSnapshot>,
 }
 
 impl Snapshot {
-    /// Renders the first wave of `scene` stage by stage, in schedule order, keeping each stage's
-    /// input. Runs on the current rayon pool.
+    /// Renders one wave of `scene` stage by stage, in schedule order, keeping each stage's input:
+    /// the whole frame when it fits one wave, else the wave holding the image's middle pixel (the
+    /// first rows are often all sky). Runs on the current rayon pool.
     pub fn capture(scene: &Scene, world: &World) -> Snapshot {
         let pipeline = Pipeline::for_scene(scene);
         let image = &scene.image;
@@ -74,9 +76,10 @@ impl Snapshot {
         let options = RenderOptions::default();
         let pixels_per_wave =
             ((options.wave_samples / spp as usize).max(1)).min(total as usize) as u32;
+        let middle = (total / 2 / pixels_per_wave) * pixels_per_wave;
         let wave = Wave {
-            first_pixel: 0,
-            pixels: pixels_per_wave.min(total),
+            first_pixel: middle,
+            pixels: pixels_per_wave.min(total - middle),
             samples: spp,
         };
 
@@ -434,6 +437,63 @@ pub struct Report {
     pub timings: Vec<Timing>,
     /// Remarks for the reader (skipped peers, multi-wave snapshots).
     pub notes: Vec<String>,
+    /// How close the frame runs to the memory-bandwidth bound.
+    pub traffic: Option<Traffic>,
+}
+
+/// Queue traffic of a frame against the machine's measured memory bandwidth.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Traffic {
+    /// Samples (primary rays) per second of the median frame.
+    pub samples_per_s: f64,
+    /// Modelled bytes read and written in queue columns per sample ([`queue_traffic_bytes`]).
+    pub bytes_per_sample: f64,
+    /// `samples_per_s · bytes_per_sample`, in GB/s.
+    pub achieved_gb_per_s: f64,
+    /// Measured copy bandwidth of this machine on the same pool, in GB/s ([`copy_bandwidth`]).
+    pub machine_gb_per_s: f64,
+}
+
+/// Bytes the schedule moves through queue columns for a render with these statistics.
+///
+/// A model from the column sizes, per row, counting each column read or written once per pass:
+/// generate writes a ray row (44 B); intersect reads origin, direction and `t_max` (28 B), writes
+/// `t` and `prim` (8 B) and re-reads `prim` (4 B) per ray, then gathers 48 B into and out of the hit
+/// queue per hit; shade reads and writes 188 B per hit (surface columns, emitted radiance, the
+/// film add) plus 52 B per shadow candidate and 88 B per kept shadow ray; shadow reads 45 B and
+/// writes 1 B per ray, and read-modify-writes 24 B of film per lit ray; reflect reads 4 B per hit
+/// and 56 B, writes 44 B per spawned ray.
+pub fn queue_traffic_bytes(stats: &Stats, lights: usize) -> u64 {
+    stats
+        .entries
+        .iter()
+        .map(|(&(_, stage), e)| {
+            let (i, o) = (e.rays_in, e.rays_out);
+            match stage {
+                Stage::Generate => 44 * o,
+                Stage::Intersect => 40 * i + 96 * o,
+                Stage::Shade => 188 * i + 52 * i * lights as u64 + 88 * o,
+                Stage::Shadow => 46 * i + 24 * o,
+                Stage::Reflect => 4 * i + 100 * o,
+            }
+        })
+        .sum()
+}
+
+/// Best-of-3 parallel copy bandwidth (bytes read + written per second, in GB/s) of a 256 MiB
+/// buffer on the current rayon pool: the bound a queue-streaming renderer runs against.
+pub fn copy_bandwidth() -> f64 {
+    use rayon::prelude::*;
+    let n = 32 << 20; // u64 words = 256 MiB
+    let src: Vec<u64> = (0..n as u64).into_par_iter().collect();
+    let mut dst = vec![0u64; n];
+    let s = best_of(3, || {
+        dst.par_chunks_mut(1 << 16)
+            .zip(src.par_chunks(1 << 16))
+            .for_each(|(d, s)| d.copy_from_slice(s));
+    });
+    std::hint::black_box(&dst);
+    2.0 * (n * 8) as f64 / s / 1e9
 }
 
 impl Report {
@@ -489,6 +549,18 @@ impl fmt::Display for Report {
                 "frame: {:.2} ms (median of {} renders)",
                 t.seconds * 1e3,
                 t.runs
+            )?;
+        }
+        if let Some(t) = &self.traffic {
+            writeln!(
+                f,
+                "traffic: {:.2} Msamples/s x {:.0} B/sample of queue columns = {:.2} GB/s; \
+                 machine copy bandwidth {:.2} GB/s ({:.0}% of the bound)",
+                t.samples_per_s / 1e6,
+                t.bytes_per_sample,
+                t.achieved_gb_per_s,
+                t.machine_gb_per_s,
+                100.0 * t.achieved_gb_per_s / t.machine_gb_per_s
             )?;
         }
         if let (Some(l), Some(t)) = (self.timing("load_obj"), self.timing("tree")) {
@@ -580,7 +652,7 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     let mut bench = StageBench::new(scene, &world);
     if bench.snapshot.waves > 1 {
         report.notes.push(format!(
-            "stages timed on the first of {} waves ({} samples)",
+            "stages timed on the middle one of {} waves ({} samples)",
             bench.snapshot.waves,
             bench.snapshot.wave.len()
         ));
@@ -597,9 +669,21 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
         report.stages.push(r);
     }
 
+    let mut stats = Stats::default();
     let frame = median_of(repeat, || {
-        render(scene, &world, RenderOptions::default(), |_, _| {});
+        stats = render(scene, &world, RenderOptions::default(), |_, _| {}).1;
     });
+    if world.triangles.is_none() {
+        let samples =
+            scene.image.width as f64 * scene.image.height as f64 * scene.image.samples as f64;
+        let bytes = queue_traffic_bytes(&stats, world.lights.len()) as f64 / samples;
+        report.traffic = Some(Traffic {
+            samples_per_s: samples / frame,
+            bytes_per_sample: bytes,
+            achieved_gb_per_s: samples / frame * bytes / 1e9,
+            machine_gb_per_s: copy_bandwidth(),
+        });
+    }
     report
         .timings
         .push(timing(scene, "frame", threads, frame, repeat));

@@ -50,6 +50,9 @@ struct BenchArgs {
     /// Worker threads (default: all cores).
     #[arg(long)]
     threads: Option<usize>,
+    /// Samples per pixel (the stages are timed on the first wave; the frame on all of it).
+    #[arg(long)]
+    samples: Option<u32>,
     /// Timed runs per kernel (best taken) and renders per frame (median taken).
     #[arg(long, default_value_t = 5)]
     repeat: usize,
@@ -269,6 +272,7 @@ fn run_bench(args: &BenchArgs) -> Result<()> {
     let mut scene = load_scene(&args.scene)?;
     Overrides {
         mesh: args.mesh.clone(),
+        samples: args.samples,
         ..Overrides::default()
     }
     .apply(&mut scene)?;

@@ -4,6 +4,8 @@
 //! Every assertion compares against an f64 evaluation on the same f32 inputs or against an exact
 //! geometric fact, with the tolerance stated where it is set.
 
+mod common;
+use common::Rng;
 use glam::{DVec3, Vec3};
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::geometry::sphere::{intersect_naive, intersect_stable};
@@ -13,24 +15,6 @@ use wavefront::scene::builtin::spheres;
 use wavefront::scene::{Material, MeshRef, PointLight, RenderMode, Scene, Sphere, TreeSource};
 use wavefront::stages::intersect::intersect_closest;
 use wavefront::{RenderOptions, World, render};
-
-/// A small deterministic generator (splitmix64) for seeded rays.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [-1, 1).
-    fn signed(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 52) as f64 - 1.0
-    }
-}
 
 /// Independent f64 reference: the textbook quadratic, which is accurate in f64 for these inputs
 /// (its cancellations cost ~1e-16 relative, far below f32 resolution).

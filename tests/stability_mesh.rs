@@ -2,29 +2,13 @@
 //! rays through shared vertices and edges, degenerate triangles, subnormal and signed-zero
 //! directions, poisoned rays.
 
+mod common;
+use common::Rng;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use wavefront::accel::kdtree::{BuildMethod, KdTree, TriHit};
 use wavefront::geometry::triangle::{intersect_all_closest, intersect_all_occluded};
 use wavefront::mesh::TriangleMesh;
-
-/// splitmix64, for seeded rays.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    fn unit(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-}
 
 const PLANE_X: f32 = 148_376.0;
 const CELLS: u32 = 200; // 200 × 200 quads = 80,000 triangles

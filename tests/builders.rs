@@ -1,0 +1,61 @@
+//! The image does not depend on how the kD tree was made or how many threads trace it: midpoint,
+//! SAH and a tree file written and read back give byte-identical Sibenik renders.
+
+mod common;
+
+use wavefront::accel::kdtree::{BuildMethod, KdTree};
+use wavefront::mesh::TriangleMesh;
+use wavefront::scene::TreeSource;
+use wavefront::scene::builtin::sibenik;
+
+/// `sibenik-shadows` through a 128 × 128 window around the image centre (the midpoint tree's
+/// huge leaves make full frames slow), with the given tree.
+fn render_with(tree: TreeSource, threads: usize, mesh: &std::path::Path) -> Vec<u8> {
+    let mut scene = sibenik(true);
+    scene.meshes[0].path = mesh.to_path_buf();
+    scene.meshes[0].kdtree = tree;
+    scene.image.width = 128;
+    scene.image.height = 128;
+    // A quarter of the window, off-centre so walls, floor and shadow edges are all in view.
+    scene.camera.l = -0.06;
+    scene.camera.r = -0.01;
+    scene.camera.b = -0.06;
+    scene.camera.t = -0.01;
+    common::in_pool(threads, || common::render_png_bytes(&scene))
+}
+
+#[test]
+fn midpoint_sah_and_tree_file_render_identically_on_any_thread_count() {
+    let Some(mesh_path) = common::sibenik_mesh() else {
+        return;
+    };
+    let mesh = TriangleMesh::load_obj(&mesh_path).unwrap();
+    let file = std::env::temp_dir().join(format!("wavefront-builders-{}.kd", std::process::id()));
+    let mut text = Vec::new();
+    KdTree::build(&mesh, BuildMethod::Sah)
+        .write_text(&mut text)
+        .unwrap();
+    std::fs::write(&file, text).unwrap();
+
+    let reference = render_with(TreeSource::Sah, 2, &mesh_path);
+    let lit = reference.chunks(3).filter(|p| p[0] > 0).count();
+    let dark = reference.chunks(3).filter(|p| p[0] == 0).count();
+    assert!(
+        lit > 1000 && dark > 100,
+        "the window must show lit and shadowed surfaces ({lit}, {dark})"
+    );
+    for (tree, threads) in [
+        (TreeSource::Sah, 1),
+        (TreeSource::Midpoint, 1),
+        (TreeSource::Midpoint, 2),
+        (TreeSource::File(file.clone()), 1),
+        (TreeSource::File(file.clone()), 2),
+    ] {
+        let image = render_with(tree.clone(), threads, &mesh_path);
+        assert!(
+            image == reference,
+            "{tree:?} on {threads} thread(s) differs from SAH on 2"
+        );
+    }
+    let _ = std::fs::remove_file(&file);
+}
