@@ -172,3 +172,124 @@ fn the_cli_rejects_mutated_scenes_cleanly() {
     assert!(leftovers.is_empty(), "partial files left: {leftovers:?}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A closed cube as OBJ text: 8 `v` lines, 12 `f` lines.
+const CUBE_OBJ: &str = "v -1 -1 -1\nv 1 -1 -1\nv 1 1 -1\nv -1 1 -1\nv -1 -1 1\nv 1 -1 1\nv 1 1 1\nv -1 1 1\n\
+f 1 2 3\nf 1 3 4\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 3 7\nf 4 7 8\nf 1 4 8\nf 1 8 5\nf 2 3 7\nf 2 7 6\n";
+
+/// Tokens for mutating OBJ and tree files.
+const FILE_TOKENS: &[&str] = &[
+    "nan",
+    "inf",
+    "-inf",
+    "1e39",
+    "0",
+    "-1",
+    "99",
+    "4294967296",
+    "x",
+    "",
+    " ",
+    "\n",
+    "f 1 2",
+    "f 1 2 3 4 5",
+    "v 1 2",
+    "f 0 1 2",
+    "f -9 1 2",
+    "inner{",
+    "leaf{",
+    "}",
+    ";",
+    "3",
+    "-0.0",
+    "1e-45",
+    "#",
+];
+
+fn mutate_with(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
+    let mut t = text.to_owned();
+    let mut at = at % (t.len() + 1);
+    while !t.is_char_boundary(at) {
+        at -= 1;
+    }
+    let mut end = (at + len % 12).min(t.len());
+    while !t.is_char_boundary(end) {
+        end -= 1;
+    }
+    let tok = FILE_TOKENS[token % FILE_TOKENS.len()];
+    match kind % 3 {
+        0 => t.replace_range(at..end, tok),
+        1 => t.replace_range(at..end, ""),
+        _ => t.insert_str(at, tok),
+    }
+    t
+}
+
+/// The error names the file and, where the message has a line, a line inside the file.
+fn assert_names_file(message: &str, path: &Path, text: &str) {
+    let p = path.display().to_string();
+    assert!(
+        message.contains(&p),
+        "error does not name the file: {message}"
+    );
+    if let Some(rest) = message.strip_prefix(&format!("{p}:")) {
+        if let Some(line) = rest.split(':').next().and_then(|l| l.parse::<usize>().ok()) {
+            assert!(
+                line >= 1 && line <= text.lines().count().max(1) + 1,
+                "line {line} outside the file: {message}"
+            );
+        }
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 500, .. ProptestConfig::default() })]
+
+    #[test]
+    fn mutated_obj_files_load_or_name_file_and_line(
+        muts in prop::collection::vec((any::<u8>(), any::<usize>(), any::<usize>(), any::<usize>()), 1..4)
+    ) {
+        let mut text = CUBE_OBJ.to_owned();
+        for (kind, at, len, token) in muts {
+            text = mutate_with(&text, kind, at, len, token);
+        }
+        let dir = temp_dir("obj");
+        let path = dir.join("m.obj");
+        std::fs::write(&path, &text).unwrap();
+        match wavefront::mesh::TriangleMesh::load_obj(&path) {
+            Ok(mesh) => {
+                prop_assert!(mesh.vertices.iter().flatten().all(|c| c.is_finite()));
+                prop_assert!(mesh.indices.iter().flatten().all(|&i| (i as usize) < mesh.vertices.len()));
+            }
+            Err(e) => assert_names_file(&e.to_string(), &path, &text),
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn mutated_tree_files_load_or_name_file_and_line(
+        muts in prop::collection::vec((any::<u8>(), any::<usize>(), any::<usize>(), any::<usize>()), 1..4)
+    ) {
+        use wavefront::accel::kdtree::{BuildMethod, KdTree};
+        let dir = temp_dir("tree");
+        let obj = dir.join("m.obj");
+        std::fs::write(&obj, CUBE_OBJ).unwrap();
+        let mesh = wavefront::mesh::TriangleMesh::load_obj(&obj).unwrap();
+        let mut text = Vec::new();
+        KdTree::build(&mesh, BuildMethod::Midpoint).write_text(&mut text).unwrap();
+        let mut text = String::from_utf8(text).unwrap();
+        for (kind, at, len, token) in muts {
+            text = mutate_with(&text, kind, at, len, token);
+        }
+        let path = dir.join("t.kd");
+        match KdTree::read_text(text.as_bytes(), &path, mesh.len()) {
+            // Whatever loads can be traced without panicking, and validate() judges it.
+            Ok(tree) => {
+                let _ = tree.validate(&mesh);
+                let _ = tree.intersect_closest(&mesh, glam::Vec3::ZERO, glam::Vec3::X, f32::INFINITY);
+            }
+            Err(e) => assert_names_file(&e.to_string(), &path, &text),
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
