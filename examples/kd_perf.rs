@@ -130,6 +130,45 @@ fn main() {
             })
         });
         assert_eq!(occl, occl2);
+        // Batch (packet) kernels over chunks, as the stages call them.
+        const CHUNK: usize = 1024;
+        let (po, pd): (Vec<Vec3>, Vec<Vec3>) = rays.iter().copied().unzip();
+        let ptm = vec![f32::INFINITY; rays.len()];
+        let closest_batch = |o: &[Vec3], d: &[Vec3], tm: &[f32]| {
+            let (mut t, mut tri) = (vec![0.0; o.len()], vec![0u32; o.len()]);
+            tree.intersect_closest_batch(&mesh, o, d, tm, &mut t, &mut tri);
+            t.into_iter()
+                .zip(tri)
+                .map(|(t, tri)| (tri != u32::MAX).then_some(TriHit { t, tri }))
+                .collect::<Vec<_>>()
+        };
+        let (cb1, bh) = p1.install(|| best_of(reps, || closest_batch(&po, &pd, &ptm)));
+        let (cb2, bh2) = p2.install(|| {
+            best_of(reps, || {
+                po.par_chunks(CHUNK)
+                    .zip(pd.par_chunks(CHUNK))
+                    .zip(ptm.par_chunks(CHUNK))
+                    .flat_map_iter(|((o, d), tm)| closest_batch(o, d, tm))
+                    .collect::<Vec<_>>()
+            })
+        });
+        let (so, sd): (Vec<Vec3>, Vec<Vec3>) = shadow.iter().copied().unzip();
+        let stm = vec![1.0f32; shadow.len()];
+        let occ_batch = |o: &[Vec3], d: &[Vec3], tm: &[f32]| {
+            let mut out = vec![false; o.len()];
+            tree.intersect_occluded_batch(&mesh, o, d, tm, &mut out);
+            out
+        };
+        let (ob1, bo) = p1.install(|| best_of(reps, || occ_batch(&so, &sd, &stm)));
+        let (ob2, bo2) = p2.install(|| {
+            best_of(reps, || {
+                so.par_chunks(CHUNK)
+                    .zip(sd.par_chunks(CHUNK))
+                    .zip(stm.par_chunks(CHUNK))
+                    .flat_map_iter(|((o, d), tm)| occ_batch(o, d, tm))
+                    .collect::<Vec<_>>()
+            })
+        });
         let blocked = occl.iter().filter(|&&b| b).count();
         println!(
             "  closest  {:.2} Mrays/s (1 thr) {:.2} Mrays/s (2 thr), {} hits, checksum {:016x}",
@@ -145,5 +184,21 @@ fn main() {
             shadow.len(),
             blocked
         );
+        println!(
+            "  closest  batch {:.2} Mrays/s (1 thr) {:.2} Mrays/s (2 thr)\n  occluded batch {:.2} Mrays/s (1 thr) {:.2} Mrays/s (2 thr)",
+            n / cb1 * 1e-6,
+            n / cb2 * 1e-6,
+            ns / ob1 * 1e-6,
+            ns / ob2 * 1e-6
+        );
+        assert_eq!(
+            checksum(&bh),
+            checksum(&hits),
+            "batch closest differs from single"
+        );
+        assert_eq!(checksum(&bh2), checksum(&hits));
+        assert_eq!(bo, occl, "batch occluded differs from single");
+        assert_eq!(bo2, occl);
+        println!("  batch results identical to single-ray results");
     }
 }

@@ -203,6 +203,70 @@ impl World {
             })
     }
 
+    /// [`World::intersect_closest`] for many rays, bit-identical to it row for row: `out_t[i]`,
+    /// `out_prim[i]` receive ray `i`'s answer. Mesh-only scenes with the watertight test go
+    /// through [`KdTree::intersect_closest_batch`] (4-ray packets); others ray by ray.
+    /// Panics if the slices' lengths differ.
+    pub fn intersect_closest_batch(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out_t: &mut [f32],
+        out_prim: &mut [PrimId],
+    ) {
+        let n = origins.len();
+        assert!(dirs.len() == n && t_max.len() == n && out_t.len() == n && out_prim.len() == n);
+        match &self.triangles {
+            Some(t) if self.mesh_only_watertight() => {
+                // `PrimId` is a transparent `u32`; triangle ids start at 0 in a mesh-only world,
+                // and a miss (`u32::MAX`) is `PrimId::NONE`.
+                let tri: &mut [u32] = bytemuck::cast_slice_mut(out_prim);
+                t.tree
+                    .intersect_closest_batch(&t.mesh, origins, dirs, t_max, out_t, tri);
+            }
+            _ => {
+                for i in 0..n {
+                    (out_t[i], out_prim[i]) = self.intersect_closest(origins[i], dirs[i], t_max[i]);
+                }
+            }
+        }
+    }
+
+    /// [`World::intersect_occluded`] for many rays into `out`, bit-identical to it row for row
+    /// (mesh-only scenes with the watertight test go through
+    /// [`KdTree::intersect_occluded_batch`]). Panics if the slices' lengths differ.
+    pub fn intersect_occluded_batch(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out: &mut [bool],
+    ) {
+        let n = origins.len();
+        assert!(dirs.len() == n && t_max.len() == n && out.len() == n);
+        match &self.triangles {
+            Some(t) if self.mesh_only_watertight() => {
+                t.tree
+                    .intersect_occluded_batch(&t.mesh, origins, dirs, t_max, out);
+            }
+            _ => {
+                for i in 0..n {
+                    out[i] = self.intersect_occluded(origins[i], dirs[i], t_max[i]);
+                }
+            }
+        }
+    }
+
+    /// True when the world's only primitives are triangles, tested with the watertight test
+    /// (what the batch kernels of [`KdTree`] compute).
+    fn mesh_only_watertight(&self) -> bool {
+        self.spheres.is_empty()
+            && self.planes.is_empty()
+            && self.triangle_base() == 0
+            && self.robustness.triangle == crate::scene::TriangleTest::Watertight
+    }
+
     /// The surface at a hit: point, normal facing the incoming direction `d`, material, and the
     /// origin for rays leaving it.
     ///

@@ -7,18 +7,31 @@
 use rayon::prelude::*;
 
 use crate::queue::compact::{gather, kept_rows};
-use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, RayQueue};
+use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue};
 use crate::world::World;
 
-/// Closest hit of every ray in `rays` into `hits` (one row per ray).
+/// Closest hit of every ray in `rays` into `hits` (one row per ray). Chunks of rays go through
+/// [`World::intersect_closest_batch`] (packets of consecutive, coherent rays).
 pub fn intersect_closest(world: &World, rays: &RayQueue, hits: &mut HitColumns) {
-    let (t, prim): (Vec<_>, Vec<_>) = (&rays.origin, &rays.direction, &rays.t_max)
-        .into_par_iter()
-        .with_min_len(MIN_CHUNK)
-        .map(|(&o, &d, &t_max)| world.intersect_closest(o, d, t_max))
-        .unzip();
-    hits.t = t;
-    hits.prim = prim;
+    let n = rays.len();
+    hits.t.clear();
+    hits.t.resize(n, f32::INFINITY);
+    hits.prim.clear();
+    hits.prim.resize(n, PrimId::NONE);
+    hits.t
+        .par_chunks_mut(MIN_CHUNK)
+        .zip(hits.prim.par_chunks_mut(MIN_CHUNK))
+        .enumerate()
+        .for_each(|(c, (t, prim))| {
+            let r = c * MIN_CHUNK..c * MIN_CHUNK + t.len();
+            world.intersect_closest_batch(
+                &rays.origin[r.clone()],
+                &rays.direction[r.clone()],
+                &rays.t_max[r],
+                t,
+                prim,
+            );
+        });
 }
 
 /// Copies the rays that hit, with their hits, into `out` in slot order. `rows` is scratch.

@@ -10,12 +10,23 @@ use crate::queue::{MIN_CHUNK, ShadowQueue};
 use crate::world::World;
 
 /// Whether each shadow ray is blocked by anything strictly between its origin and its light.
+/// Chunks of rays go through [`World::intersect_occluded_batch`] (packets of consecutive rays).
 pub fn intersect_occluded(world: &World, shadows: &ShadowQueue, occluded: &mut Vec<bool>) {
-    (&shadows.origin, &shadows.direction, &shadows.t_max)
-        .into_par_iter()
-        .with_min_len(MIN_CHUNK)
-        .map(|(&o, &d, &t_max)| world.intersect_occluded(o, d, t_max))
-        .collect_into_vec(occluded);
+    let n = shadows.len();
+    occluded.clear();
+    occluded.resize(n, false);
+    occluded
+        .par_chunks_mut(MIN_CHUNK)
+        .enumerate()
+        .for_each(|(c, out)| {
+            let r = c * MIN_CHUNK..c * MIN_CHUNK + out.len();
+            world.intersect_occluded_batch(
+                &shadows.origin[r.clone()],
+                &shadows.direction[r.clone()],
+                &shadows.t_max[r],
+                out,
+            );
+        });
 }
 
 #[cfg(test)]
