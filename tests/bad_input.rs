@@ -232,13 +232,13 @@ fn assert_names_file(message: &str, path: &Path, text: &str) {
         message.contains(&p),
         "error does not name the file: {message}"
     );
-    if let Some(rest) = message.strip_prefix(&format!("{p}:")) {
-        if let Some(line) = rest.split(':').next().and_then(|l| l.parse::<usize>().ok()) {
-            assert!(
-                line >= 1 && line <= text.lines().count().max(1) + 1,
-                "line {line} outside the file: {message}"
-            );
-        }
+    if let Some(rest) = message.strip_prefix(&format!("{p}:"))
+        && let Some(line) = rest.split(':').next().and_then(|l| l.parse::<usize>().ok())
+    {
+        assert!(
+            line >= 1 && line <= text.lines().count().max(1) + 1,
+            "line {line} outside the file: {message}"
+        );
     }
 }
 
