@@ -57,7 +57,7 @@ pub struct Pipeline {
 }
 
 impl Pipeline {
-    /// The pipeline `scene` needs; `tree` describes the triangle acceleration structure, if any.
+    /// The pipeline `scene` needs.
     pub fn for_scene(scene: &Scene) -> Pipeline {
         let shade = ShadeSettings::for_scene(scene);
         let mask = scene.render.mode == RenderMode::HitMask;

@@ -43,9 +43,16 @@ const TOKENS: &[&str] = &[
     "-9223372036854775808",
 ];
 
-/// A mutation of the scene text: replace a byte range with a token, delete a range, or
-/// duplicate a line.
-fn mutate(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
+/// A mutation of `text`: replace a byte range with one of `tokens`, delete a range, insert a
+/// token, or duplicate a line.
+fn mutate_from(
+    tokens: &[&str],
+    text: &str,
+    kind: u8,
+    at: usize,
+    len: usize,
+    token: usize,
+) -> String {
     let mut t = text.to_owned();
     let mut at = at % (t.len() + 1);
     while !t.is_char_boundary(at) {
@@ -55,9 +62,11 @@ fn mutate(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
     while !t.is_char_boundary(end) {
         end -= 1;
     }
-    match kind % 3 {
-        0 => t.replace_range(at..end, TOKENS[token % TOKENS.len()]),
+    let tok = tokens[token % tokens.len()];
+    match kind % 4 {
+        0 => t.replace_range(at..end, tok),
         1 => t.replace_range(at..end, ""),
+        2 => t.insert_str(at, tok),
         _ => {
             let line_start = t[..at].rfind('\n').map_or(0, |i| i + 1);
             let line_end = t[at..].find('\n').map_or(t.len(), |i| at + i);
@@ -66,6 +75,11 @@ fn mutate(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
         }
     }
     t
+}
+
+/// [`mutate_from`] with the scene-file tokens.
+fn mutate(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
+    mutate_from(TOKENS, text, kind, at, len, token)
 }
 
 /// An error message must be `file:line: key: message` with a line inside the text.
@@ -207,22 +221,7 @@ const FILE_TOKENS: &[&str] = &[
 ];
 
 fn mutate_with(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
-    let mut t = text.to_owned();
-    let mut at = at % (t.len() + 1);
-    while !t.is_char_boundary(at) {
-        at -= 1;
-    }
-    let mut end = (at + len % 12).min(t.len());
-    while !t.is_char_boundary(end) {
-        end -= 1;
-    }
-    let tok = FILE_TOKENS[token % FILE_TOKENS.len()];
-    match kind % 3 {
-        0 => t.replace_range(at..end, tok),
-        1 => t.replace_range(at..end, ""),
-        _ => t.insert_str(at, tok),
-    }
-    t
+    mutate_from(FILE_TOKENS, text, kind, at, len, token)
 }
 
 /// The error names the file and, where the message has a line, a line inside the file.
