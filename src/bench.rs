@@ -470,7 +470,7 @@ pub fn queue_traffic_bytes(stats: &Stats, lights: usize) -> u64 {
         .map(|(&(_, stage), e)| {
             let (i, o) = (e.rays_in, e.rays_out);
             match stage {
-                Stage::Generate => 44 * o,
+                Stage::Generate => RayQueue::ROW_BYTES as u64 * o,
                 Stage::Intersect => 40 * i + 96 * o,
                 Stage::Shade => 188 * i + 52 * i * lights as u64 + 88 * o,
                 Stage::Shadow => 46 * i + 24 * o,

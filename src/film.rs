@@ -172,17 +172,23 @@ pub fn save_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(),
         file: path.to_path_buf(),
         source,
     })?;
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".partial");
-    let tmp = path.with_file_name(name);
-    let written = std::fs::write(&tmp, &bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written.map_err(|source| OutputError::Io {
+    write_atomically(path, &bytes).map_err(|source| OutputError::Io {
         file: path.to_path_buf(),
         source,
     })
+}
+
+/// Writes `bytes` to `path` so that the file appears complete or not at all: they go to
+/// `path.partial`, which is renamed over `path` when complete and removed on failure.
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    let mut name = path.file_name().unwrap_or_default().to_os_string();
+    name.push(".partial");
+    let tmp = path.with_file_name(name);
+    let written = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
 }
 
 #[cfg(test)]

@@ -390,7 +390,8 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             let mut text = Vec::new();
             tree.write_text(&mut text)
                 .context("cannot format the tree")?;
-            write_atomically(&output, &text)?;
+            wavefront::film::write_atomically(&output, &text)
+                .with_context(|| format!("cannot write {}", output.display()))?;
             println!(
                 "built {method:?} tree over {} triangles in {:.1} ms",
                 m.len(),
@@ -409,15 +410,4 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             Ok(())
         }
     }
-}
-
-fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".partial");
-    let tmp = path.with_file_name(name);
-    let result = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if result.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    result.with_context(|| format!("cannot write {}", path.display()))
 }

@@ -179,47 +179,43 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
     }
 
     // Scenes for precision and robustness: the base, Sibenik (if present), the base moved far.
-    let mut scenes: Vec<(String, Scene, Option<TriangleMesh>)> = vec![];
-    scenes.push((label.clone(), base.clone(), mesh.cloned()));
+    let mut scenes: Vec<(String, Scene)> = vec![(label.clone(), base.clone())];
     if settings.sibenik_mesh.exists() {
         let mut s = sibenik(true);
         s.meshes[0].path = settings.sibenik_mesh.clone();
-        let m = TriangleMesh::load_obj(&settings.sibenik_mesh)?;
-        scenes.push(("sibenik-shadows".into(), s, Some(m)));
+        scenes.push(("sibenik-shadows".into(), s));
     } else {
         report.notes.push(format!(
             "Sibenik parts skipped: mesh not found at {} (set WAVEFRONT_SIBENIK or put sibenik.obj there)",
             settings.sibenik_mesh.display()
         ));
     }
-    let far = Vec3::splat(1e4);
     scenes.push((
         format!("{label} at 1e4"),
-        translated(base, far),
-        mesh.cloned(),
+        translated(base, Vec3::splat(1e4)),
     ));
 
-    for (name, scene, mesh) in &scenes {
+    // Each scene is loaded once and its oracle reference rendered once; the variants only switch
+    // the world's numerical settings. Sibenik's world and reference are kept for the kD part.
+    let mut sibenik_world = None;
+    for (name, scene) in &scenes {
         log(&format!("precision and robustness: {name}"));
         let mut s = scene.clone();
         s.image.samples = 1;
-        let reference = oracle_rgb8(&s, mesh.as_ref());
+        let mut world = World::load(&s)?;
+        let reference = oracle_rgb8(&s, world.triangles.as_ref().map(|t| &t.mesh));
         for (variant, robustness) in variants() {
-            let has_spheres = !s.spheres.is_empty();
-            let has_mesh = mesh.is_some();
             let relevant = match robustness {
                 r if r == Robustness::default() => true,
-                r if r.sphere != SphereTest::Stable => has_spheres,
-                r if r.triangle != TriangleTest::Watertight => has_mesh,
+                r if r.sphere != SphereTest::Stable => !s.spheres.is_empty(),
+                r if r.triangle != TriangleTest::Watertight => world.triangles.is_some(),
                 _ => true,
             };
             if !relevant {
                 continue;
             }
-            let mut v = s.clone();
-            v.render.robustness = robustness;
-            let world = World::load(&v)?;
-            let (image, seconds) = timed_render(&v, &world, settings.runs);
+            world.robustness = robustness;
+            let (image, seconds) = timed_render(&s, &world, settings.runs);
             let group = if robustness == Robustness::default() {
                 "precision"
             } else {
@@ -233,19 +229,22 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
                 diff: compare_rgb8(&image, &reference),
             });
         }
+        if name == "sibenik-shadows" {
+            world.robustness = Robustness::default();
+            sibenik_world = Some((s, world, reference));
+        }
     }
 
     // kD builders on Sibenik: identical images, different times.
-    if let Some((_, scene, Some(mesh))) = scenes.iter().find(|(n, _, _)| n == "sibenik-shadows") {
+    if let Some((scene, world, reference)) = sibenik_world
+        && let Some(tris) = &world.triangles
+    {
         log("kd builders on sibenik-shadows");
-        let reference = oracle_rgb8(scene, Some(mesh));
         let tree_file =
             std::env::temp_dir().join(format!("wavefront-report-{}.kd", std::process::id()));
-        let sah = crate::accel::kdtree::KdTree::build(mesh, crate::accel::kdtree::BuildMethod::Sah);
         let mut text = Vec::new();
-        sah.write_text(&mut text)?;
-        std::fs::write(&tree_file, text)
-            .with_context(|| format!("cannot write {}", tree_file.display()))?;
+        tris.tree.write_text(&mut text)?; // the world's tree is the SAH one
+        write_file(&tree_file, &text)?;
         for (config, source) in [
             ("midpoint", TreeSource::Midpoint),
             ("sah", TreeSource::Sah),
@@ -260,7 +259,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
             report.points.push(ReportPoint {
                 group: "kd",
                 scene: "sibenik-shadows".into(),
-                config: format!("{config} (tree {:.0} ms)", setup * 1e3),
+                config: format!("{config} (load + tree {:.0} ms)", setup * 1e3),
                 seconds,
                 diff: compare_rgb8(&image, &reference),
             });
@@ -331,7 +330,8 @@ pub fn write(report: &Report, settings: &ReportSettings, dir: &Path) -> Result<(
 }
 
 fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
-    std::fs::write(path, bytes).with_context(|| format!("cannot write {}", path.display()))
+    crate::film::write_atomically(path, bytes)
+        .with_context(|| format!("cannot write {}", path.display()))
 }
 
 /// The log-log scatter of RMSE against time, one colour per group.

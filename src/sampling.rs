@@ -20,21 +20,48 @@ pub fn uniform(seed: u32, a: u32, b: u32) -> f32 {
     (h >> 8) as f32 * (1.0 / 16_777_216.0)
 }
 
-/// Offset of sample `s` of `n` inside its pixel, in `[0, 1)²`.
+/// Offset of sample `s` of `n` inside its pixel, in `[0, 1)²` (see [`Strata`]).
+#[inline]
+pub fn sample_offset(seed: u32, pixel: u32, s: u32, n: u32) -> (f32, f32) {
+    Strata::new(n).offset(seed, pixel, s)
+}
+
+/// The stratification of a pixel for `n` samples, computed once per wave rather than per ray.
 ///
 /// One sample sits at the pixel centre (SPEC §1). With `n > 1` the pixel is cut into
 /// `k × m` strata (`k = ⌈√n⌉`, `m = ⌈n / k⌉`; exactly `√n × √n` when `n` is a square) and sample
 /// `s` is jittered uniformly inside stratum `s`.
-#[inline]
-pub fn sample_offset(seed: u32, pixel: u32, s: u32, n: u32) -> (f32, f32) {
-    if n <= 1 {
-        return (0.5, 0.5);
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Strata {
+    /// Samples per pixel.
+    pub n: u32,
+    /// Columns of strata.
+    pub k: u32,
+    /// Rows of strata.
+    pub m: u32,
+}
+
+impl Strata {
+    /// The strata for `n` samples.
+    pub fn new(n: u32) -> Strata {
+        let (k, m) = strata(n);
+        Strata { n, k, m }
     }
-    let (k, m) = strata(n);
-    let (sx, sy) = (s % k, s / k);
-    let jx = uniform(seed, pixel, 2 * s);
-    let jy = uniform(seed, pixel, 2 * s + 1);
-    ((sx as f32 + jx) / k as f32, (sy as f32 + jy) / m as f32)
+
+    /// Offset of sample `s` inside pixel `pixel`, in `[0, 1)²`.
+    #[inline]
+    pub fn offset(&self, seed: u32, pixel: u32, s: u32) -> (f32, f32) {
+        if self.n <= 1 {
+            return (0.5, 0.5);
+        }
+        let (sx, sy) = (s % self.k, s / self.k);
+        let jx = uniform(seed, pixel, 2 * s);
+        let jy = uniform(seed, pixel, 2 * s + 1);
+        (
+            (sx as f32 + jx) / self.k as f32,
+            (sy as f32 + jy) / self.m as f32,
+        )
+    }
 }
 
 /// Strata counts `(columns, rows)` for `n` samples.

@@ -124,11 +124,6 @@ impl World {
         }
     }
 
-    /// Total number of primitives.
-    pub fn prim_count(&self) -> usize {
-        self.spheres.len() + self.planes.len() + self.triangles.as_ref().map_or(0, |t| t.mesh.len())
-    }
-
     /// Decodes a primitive id.
     #[inline]
     pub fn prim_kind(&self, id: PrimId) -> PrimKind {
@@ -312,10 +307,7 @@ fn load_triangles(scene: &Scene) -> Result<Triangles, LoadError> {
     let mut material_ranges = Vec::with_capacity(scene.meshes.len());
     for m in &scene.meshes {
         if !m.path.exists() {
-            return Err(SceneError::MissingMesh {
-                path: m.path.clone(),
-            }
-            .into());
+            return Err(crate::scene::builtin::missing_mesh(&m.path).into());
         }
         let part = TriangleMesh::load_obj(&m.path)?;
         material_ranges.push((mesh.len() as u32, m.material));

@@ -7,7 +7,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
-use crate::sampling::sample_offset;
+use crate::sampling::Strata;
 use crate::scene::{Camera, ImageSettings};
 
 /// A contiguous range of pixels rendered together; its samples fill slots `0..len()`.
@@ -33,13 +33,20 @@ impl Wave {
     }
 }
 
-/// The primary ray of slot `slot` in `wave`: the per-row body of the kernel.
+/// The primary ray of slot `slot` in `wave`: the per-row body of the kernel. `strata` is
+/// `Strata::new(wave.samples)`, computed once per wave.
 #[inline]
-pub fn camera_ray(camera: &Camera, image: &ImageSettings, wave: &Wave, slot: u32) -> RayItem {
+pub fn camera_ray(
+    camera: &Camera,
+    image: &ImageSettings,
+    wave: &Wave,
+    strata: &Strata,
+    slot: u32,
+) -> RayItem {
     let pixel = wave.first_pixel + slot / wave.samples;
     let s = slot % wave.samples;
     let (i, j) = (pixel % image.width, pixel / image.width);
-    let (dx, dy) = sample_offset(image.seed, pixel, s, wave.samples);
+    let (dx, dy) = strata.offset(image.seed, pixel, s);
     let d = camera.direction(i as f32 + dx, j as f32 + dy, image.width, image.height);
     RayItem {
         origin: camera.eye,
@@ -58,9 +65,10 @@ pub fn generate_camera_rays(
     rays: &mut RayQueue,
 ) {
     let n = wave.len();
+    let strata = Strata::new(wave.samples);
     let rows = || (0..n as u32).into_par_iter().with_min_len(MIN_CHUNK);
     rows()
-        .map(|s| camera_ray(camera, image, wave, s).direction)
+        .map(|s| camera_ray(camera, image, wave, &strata, s).direction)
         .collect_into_vec(&mut rays.direction);
     rays.origin.clear();
     rays.origin.resize(n, camera.eye);
@@ -94,7 +102,10 @@ mod tests {
             assert!((d.length() - 1.0).abs() < 1e-6);
             assert!(d.z < 0.0, "scene A looks down -z");
         }
-        assert_eq!(q.get(7), camera_ray(&scene.camera, &scene.image, &wave, 7));
+        assert_eq!(
+            q.get(7),
+            camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(4), 7)
+        );
     }
 
     #[test]
@@ -107,11 +118,11 @@ mod tests {
             pixels: 4,
             samples: 1,
         };
-        let r = camera_ray(&scene.camera, &scene.image, &wave, 0);
+        let r = camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(1), 0);
         // Pixel (0, 0) is the top-left: us = -0.05, vs = +0.05.
         let expected = Vec3::new(-0.05, 0.05, -0.1).normalize();
         assert!((r.direction - expected).length() < 1e-7);
-        let r = camera_ray(&scene.camera, &scene.image, &wave, 3);
+        let r = camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(1), 3);
         assert!((r.direction - Vec3::new(0.05, -0.05, -0.1).normalize()).length() < 1e-7);
     }
 }

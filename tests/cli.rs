@@ -215,3 +215,46 @@ fn a_missing_mesh_says_where_to_put_it() {
         "does not say where the mesh belongs: {line}"
     );
 }
+
+#[test]
+fn report_writes_markdown_csv_and_plot() {
+    let s = Scratch::new("report");
+    let out = s.run(&[
+        "report",
+        "spheres",
+        "--size",
+        "32",
+        "--reference-samples",
+        "4",
+        "--runs",
+        "1",
+        "--mesh",
+        "missing/sibenik.obj",
+        "-o",
+        "rep",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let dir = s.path().join("rep");
+    let csv = std::fs::read_to_string(dir.join("report.csv")).unwrap();
+    let rows: Vec<&str> = csv.lines().skip(1).collect();
+    assert_eq!(
+        rows.iter()
+            .filter(|r| r.starts_with("convergence,"))
+            .count(),
+        5,
+        "{csv}"
+    );
+    assert!(rows.iter().any(|r| r.starts_with("precision,")), "{csv}");
+    assert!(rows.iter().any(|r| r.contains("fixed epsilon")), "{csv}");
+    let md = std::fs::read_to_string(dir.join("report.md")).unwrap();
+    assert!(
+        md.contains("error_vs_time.png") && md.contains("Sibenik parts skipped"),
+        "{md}"
+    );
+    let plot = image::open(dir.join("error_vs_time.png")).unwrap();
+    assert_eq!((plot.width(), plot.height()), (1000, 640));
+}
