@@ -3,7 +3,7 @@
 //!
 //! Reads: scene A (built in) and, when present, the Sibenik mesh at
 //! `wavefront::scene::builtin::sibenik_mesh_path()` (its benches are skipped with a message
-//! otherwise). Snapshots come from [`wavefront::bench::StageBench`], the same code
+//! otherwise). Snapshots come from [`wavefront_kit::bench::StageBench`], the same code
 //! `wavefront bench` times; each stage bench times exactly that kernel, with
 //! `Throughput::Elements(rays)` so criterion reports rays per second. Everything runs on rayon's
 //! global pool (all cores; set `RAYON_NUM_THREADS` to change it).
@@ -22,7 +22,7 @@ use criterion::{
 };
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
-use wavefront::bench::StageBench;
+use wavefront_kit::bench::StageBench;
 use wavefront::mesh::TriangleMesh;
 use wavefront::scene::builtin::{self, sibenik_mesh_path};
 use wavefront::stages::Stage;

@@ -25,15 +25,11 @@
 //! sample order and every sample is accumulated in schedule order.
 
 pub mod accel;
-pub mod bench;
 pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod mesh;
-pub mod oracle;
-pub mod peer;
 pub mod queue;
-pub mod report;
 pub mod sampling;
 pub mod scene;
 pub mod schedule;

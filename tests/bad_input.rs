@@ -1,85 +1,17 @@
 //! Bad input never panics: random and mutated scene files give a scene or an error naming the
-//! file and line; the CLI exits non-zero with one `error:` line and leaves no output behind.
+//! file and line; so do mutated OBJ and tree files (the CLI side is in `tools/cli/tests/cli.rs`).
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use proptest::prelude::*;
 use wavefront::scene::file::parse;
+use wavefront_kit::testkit::{SCENE_TOKENS, mutate_from};
 
 const SPHERES: &str = include_str!("../scenes/spheres.toml");
 
-/// Replacement tokens that stress the parser and the validation.
-const TOKENS: &[&str] = &[
-    "nan",
-    "inf",
-    "-inf",
-    "1e309",
-    "-1.0",
-    "0",
-    "0.0",
-    "\"x\"",
-    "[]",
-    "[1.0]",
-    "[1.0, 2.0, 3.0, 4.0]",
-    "{}",
-    "true",
-    "=",
-    "[",
-    "]",
-    "[[sphere]]",
-    "[material.red]",
-    "radius = -2.0",
-    "alpha = 2.0",
-    "material = \"none\"",
-    "samples = 0",
-    "max_depth = 100000",
-    "width = 0",
-    "\u{0}",
-    "é",
-    "#",
-    "\"",
-    "4294967296",
-    "-9223372036854775808",
-];
-
-/// A mutation of `text`: replace a byte range with one of `tokens`, delete a range, insert a
-/// token, or duplicate a line.
-fn mutate_from(
-    tokens: &[&str],
-    text: &str,
-    kind: u8,
-    at: usize,
-    len: usize,
-    token: usize,
-) -> String {
-    let mut t = text.to_owned();
-    let mut at = at % (t.len() + 1);
-    while !t.is_char_boundary(at) {
-        at -= 1;
-    }
-    let mut end = (at + len % 16).min(t.len());
-    while !t.is_char_boundary(end) {
-        end -= 1;
-    }
-    let tok = tokens[token % tokens.len()];
-    match kind % 4 {
-        0 => t.replace_range(at..end, tok),
-        1 => t.replace_range(at..end, ""),
-        2 => t.insert_str(at, tok),
-        _ => {
-            let line_start = t[..at].rfind('\n').map_or(0, |i| i + 1);
-            let line_end = t[at..].find('\n').map_or(t.len(), |i| at + i);
-            let line = t[line_start..line_end].to_owned();
-            t.insert_str(line_end, &format!("\n{line}"));
-        }
-    }
-    t
-}
-
 /// [`mutate_from`] with the scene-file tokens.
 fn mutate(text: &str, kind: u8, at: usize, len: usize, token: usize) -> String {
-    mutate_from(TOKENS, text, kind, at, len, token)
+    mutate_from(SCENE_TOKENS, text, kind, at, len, token)
 }
 
 /// An error message must be `file:line: key: message` with a line inside the text.
@@ -136,55 +68,6 @@ fn temp_dir(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     dir
-}
-
-#[test]
-fn the_cli_rejects_mutated_scenes_cleanly() {
-    let dir = temp_dir("cli");
-    let mut rejected = 0;
-    // A fixed, seeded selection of mutations, each through the real binary.
-    for k in 0..40usize {
-        let text = mutate(SPHERES, (k % 3) as u8, k * 7919, k * 31, k * 13);
-        let scene = dir.join(format!("s{k}.toml"));
-        std::fs::write(&scene, &text).unwrap();
-        let out = dir.join(format!("o{k}.png"));
-        let run = Command::new(env!("CARGO_BIN_EXE_wavefront"))
-            .args([
-                "render",
-                scene.to_str().unwrap(),
-                "-o",
-                out.to_str().unwrap(),
-                "--samples",
-                "1",
-            ])
-            .output()
-            .unwrap();
-        let stderr = String::from_utf8_lossy(&run.stderr);
-        assert!(
-            !stderr.contains("panicked"),
-            "panic on mutation {k}: {stderr}"
-        );
-        if run.status.success() {
-            assert!(out.exists(), "success without an image on mutation {k}");
-        } else {
-            rejected += 1;
-            assert_eq!(run.status.code(), Some(1), "{stderr}");
-            assert!(stderr.starts_with("error: "), "{stderr}");
-            assert_eq!(stderr.trim_end().lines().count(), 1, "one line: {stderr}");
-            assert!(!out.exists(), "output left behind on mutation {k}");
-        }
-    }
-    assert!(
-        rejected > 5,
-        "the mutations must produce errors to test ({rejected})"
-    );
-    let leftovers: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .filter_map(|e| e.ok())
-        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
-        .collect();
-    assert!(leftovers.is_empty(), "partial files left: {leftovers:?}");
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// A closed cube as OBJ text: 8 `v` lines, 12 `f` lines.

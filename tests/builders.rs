@@ -1,7 +1,6 @@
 //! The image does not depend on how the kD tree was made or how many threads trace it: midpoint,
 //! SAH and a tree file written and read back give byte-identical Sibenik renders.
 
-mod common;
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::mesh::TriangleMesh;
@@ -21,12 +20,12 @@ fn render_with(tree: TreeSource, threads: usize, mesh: &std::path::Path) -> Vec<
     scene.camera.r = -0.01;
     scene.camera.b = -0.06;
     scene.camera.t = -0.01;
-    common::in_pool(threads, || common::render_png_bytes(&scene))
+    wavefront_kit::testkit::in_pool(threads, || wavefront_kit::testkit::render_png_bytes(&scene))
 }
 
 #[test]
 fn midpoint_sah_and_tree_file_render_identically_on_any_thread_count() {
-    let Some(mesh_path) = common::sibenik_mesh() else {
+    let Some(mesh_path) = wavefront_kit::testkit::sibenik_mesh() else {
         return;
     };
     let mesh = TriangleMesh::load_obj(&mesh_path).unwrap();

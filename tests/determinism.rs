@@ -1,8 +1,7 @@
 //! Images are byte-identical whatever the thread count, the wave size, or the run.
 
-mod common;
 
-use common::*;
+use wavefront_kit::testkit::*;
 use wavefront::RenderOptions;
 use wavefront::Scene;
 use wavefront::scene::builtin::spheres;

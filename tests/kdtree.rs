@@ -1,7 +1,6 @@
 //! kD tree against brute force: Sibenik with seeded random and axis-parallel rays for every
 //! builder and the text round trip, plus small hand-made meshes with known answers.
 
-use std::path::PathBuf;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -43,19 +42,7 @@ impl Rng {
 }
 
 fn sibenik() -> Option<TriangleMesh> {
-    let path = std::env::var_os("WAVEFRONT_SIBENIK")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| {
-            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shared/data/sibenik/sibenik.obj")
-        });
-    if !path.exists() {
-        eprintln!(
-            "skipping: mesh not found at {} (set WAVEFRONT_SIBENIK or put sibenik.obj there)",
-            path.display()
-        );
-        return None;
-    }
-    Some(TriangleMesh::load_obj(&path).expect("sibenik loads"))
+    wavefront_kit::testkit::sibenik_triangles()
 }
 
 /// Brute force over a superset of the triangles a ray can hit: every triangle whose bounding box

@@ -1,13 +1,12 @@
 //! End-to-end images: the wavefront renderer against the independent f64 oracle
 //! (`wavefront::oracle`), and both against the assignment's reference figures.
 
-mod common;
 
 use std::sync::OnceLock;
 
-use common::*;
+use wavefront_kit::testkit::*;
 use wavefront::Scene;
-use wavefront::oracle::{ImageDiff, compare_rgb8};
+use wavefront_kit::oracle::{ImageDiff, compare_rgb8};
 use wavefront::scene::RenderMode;
 use wavefront::scene::builtin::{sibenik, spheres};
 

@@ -1,11 +1,9 @@
 //! Each scene's pipeline holds exactly the stages it needs (SPEC §7), and the shipped scene file
 //! of scene A is the built-in scene.
 
-mod common;
 
-use std::path::Path;
 
-use common::*;
+use wavefront_kit::testkit::*;
 use wavefront::Pipeline;
 use wavefront::Scene;
 use wavefront::scene::builtin::{sibenik, spheres};
@@ -136,7 +134,7 @@ fn spheres_need_no_kd_tree() {
 }
 
 fn spheres_file() -> Scene {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/spheres.toml");
+    let path = wavefront_kit::testkit::project_root().join("scenes/spheres.toml");
     file::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 

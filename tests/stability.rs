@@ -4,8 +4,7 @@
 //! Every assertion compares against an f64 evaluation on the same f32 inputs or against an exact
 //! geometric fact, with the tolerance stated where it is set.
 
-mod common;
-use common::Rng;
+use wavefront_kit::testkit::Rng;
 use glam::{DVec3, Vec3};
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::geometry::sphere::{intersect_naive, intersect_stable};

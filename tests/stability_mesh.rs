@@ -2,8 +2,7 @@
 //! rays through shared vertices and edges, degenerate triangles, subnormal and signed-zero
 //! directions, poisoned rays.
 
-mod common;
-use common::Rng;
+use wavefront_kit::testkit::Rng;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use wavefront::accel::kdtree::{BuildMethod, KdTree, TriHit};

@@ -185,18 +185,18 @@ pub fn sibenik(shadows: bool) -> Scene {
 }
 
 /// Where the built-in Sibenik scenes look for the mesh: `$WAVEFRONT_SIBENIK` if set, else
-/// `../shared/data/sibenik/sibenik.obj` relative to the working directory if it exists there,
-/// else the same path relative to this crate's source directory.
+/// [`SIBENIK_RELATIVE`] relative to the working directory (the project root, SPEC §5).
 pub fn sibenik_mesh_path() -> PathBuf {
-    if let Some(p) = std::env::var_os(SIBENIK_ENV) {
-        return PathBuf::from(p);
+    sibenik_mesh_path_in(Path::new(""))
+}
+
+/// [`sibenik_mesh_path`] for a project rooted at `root`: `$WAVEFRONT_SIBENIK` if set, else
+/// `root/`[`SIBENIK_RELATIVE`]. The one place the mesh's location is decided.
+pub fn sibenik_mesh_path_in(root: &Path) -> PathBuf {
+    match std::env::var_os(SIBENIK_ENV) {
+        Some(p) => PathBuf::from(p),
+        None => root.join(SIBENIK_RELATIVE),
     }
-    let cwd = PathBuf::from(SIBENIK_RELATIVE);
-    if cwd.exists() {
-        return cwd;
-    }
-    let manifest = Path::new(env!("CARGO_MANIFEST_DIR")).join(SIBENIK_RELATIVE);
-    if manifest.exists() { manifest } else { cwd }
 }
 
 /// The error for a mesh file that is not there, saying where to put it.

@@ -18,6 +18,7 @@ pub mod node;
 mod overlap;
 mod stats;
 mod text;
+#[allow(unsafe_code)] // until the SIMD module holds every unsafe block
 mod traverse;
 mod validate;
 

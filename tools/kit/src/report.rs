@@ -19,11 +19,11 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use crate::mesh::TriangleMesh;
+use wavefront::mesh::TriangleMesh;
 use crate::oracle::{ImageDiff, compare_rgb8, render_oracle};
-use crate::scene::builtin::{sibenik, sibenik_mesh_path};
-use crate::scene::{OffsetMethod, Robustness, Scene, SphereTest, TreeSource, TriangleTest};
-use crate::{RenderOptions, World, render};
+use wavefront::scene::builtin::{sibenik, sibenik_mesh_path};
+use wavefront::scene::{OffsetMethod, Robustness, Scene, SphereTest, TreeSource, TriangleTest};
+use wavefront::{RenderOptions, World, render};
 
 /// What to run.
 #[derive(Clone, Debug)]
@@ -330,7 +330,7 @@ pub fn write(report: &Report, settings: &ReportSettings, dir: &Path) -> Result<(
 }
 
 fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
-    crate::film::write_atomically(path, bytes)
+    wavefront::film::write_atomically(path, bytes)
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
@@ -412,6 +412,6 @@ fn plot(report: &Report, path: &Path) -> Result<()> {
             .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
         root.present().map_err(|e| anyhow::anyhow!("plot: {e}"))?;
     }
-    crate::film::save_rgb8(path, w, h, &rgb)?;
+    wavefront::film::save_rgb8(path, w, h, &rgb)?;
     Ok(())
 }

@@ -281,11 +281,11 @@ fn run_bench(args: &BenchArgs) -> Result<()> {
         Some(n) => n,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
-    let config = wavefront::bench::BenchConfig {
+    let config = wavefront_kit::bench::BenchConfig {
         threads,
         repeat: args.repeat,
     };
-    let report = wavefront::bench::run(&scene, config)
+    let report = wavefront_kit::bench::run(&scene, config)
         .with_context(|| format!("cannot benchmark scene {}", scene.name))?;
     if args.json {
         print!("{}", report.json_lines());
@@ -299,7 +299,7 @@ fn run_bench(args: &BenchArgs) -> Result<()> {
 }
 
 fn run_report(args: &ReportArgs) -> Result<()> {
-    use wavefront::report::{ReportSettings, measure, write};
+    use wavefront_kit::report::{ReportSettings, measure, write};
     let mut scene = load_scene(&args.scene)?;
     if let Some(n) = args.size {
         if n == 0 || n > wavefront::scene::file::MAX_IMAGE_SIDE {

@@ -6,7 +6,7 @@
 //! `ShadowQueue` for `shadow`) and a [`Report`] of [`Record`]s (stage, depth, rays, seconds).
 //!
 //! [`Snapshot::capture`] runs the stages by hand for the first wave exactly as
-//! [`crate::schedule::render`] orders them — generate, then per depth intersect → shade → shadow →
+//! [`wavefront::schedule::render`] orders them — generate, then per depth intersect → shade → shadow →
 //! reflect — keeping a copy of each stage's input. [`StageBench::run`] then runs one kernel on its
 //! snapshot; the CLI takes the best of R runs after one warm-up, criterion does its own sampling.
 //! With the `embree` feature, [`run`] also traces the same intersect and shadow ray arrays with the
@@ -17,18 +17,18 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::LoadError;
-use crate::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
-use crate::scene::Scene;
-use crate::schedule::{Pipeline, RenderOptions, render};
-use crate::stages::Stage;
-use crate::stages::generate::{Wave, generate_camera_rays};
-use crate::stages::intersect::{compact_hits, intersect_closest};
-use crate::stages::reflect::spawn_reflection_rays;
-use crate::stages::shade::{ShadeScratch, shade_hit_mask, shade_hits};
-use crate::stages::shadow::intersect_occluded;
-use crate::stats::Stats;
-use crate::world::World;
+use wavefront::error::LoadError;
+use wavefront::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
+use wavefront::scene::Scene;
+use wavefront::schedule::{Pipeline, RenderOptions, render};
+use wavefront::stages::Stage;
+use wavefront::stages::generate::{Wave, generate_camera_rays};
+use wavefront::stages::intersect::{compact_hits, intersect_closest};
+use wavefront::stages::reflect::spawn_reflection_rays;
+use wavefront::stages::shade::{ShadeScratch, shade_hit_mask, shade_hits};
+use wavefront::stages::shadow::intersect_occluded;
+use wavefront::stats::Stats;
+use wavefront::world::World;
 
 /// The queues one depth of the first wave read, as the schedule produced them.
 #[derive(Clone, Debug)]
@@ -732,7 +732,7 @@ fn peers(
     repeat: usize,
     report: &mut Report,
 ) -> Result<(), BenchError> {
-    use crate::accel::kdtree::{BuildMethod, KdTree};
+    use wavefront::accel::kdtree::{BuildMethod, KdTree};
     use crate::peer::embree::{EmbreeScene, TraceOpts};
     use bytemuck::cast_slice;
 
@@ -874,8 +874,8 @@ pub fn compare_closest(project: &HitColumns, t: &[f32], prim: &[u32]) -> Closest
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::queue::PrimId;
-    use crate::scene::builtin::spheres;
+    use wavefront::queue::PrimId;
+    use wavefront::scene::builtin::spheres;
 
     fn small_spheres() -> Scene {
         let mut scene = spheres();

@@ -3,6 +3,8 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+use wavefront_kit::testkit::{SCENE_TOKENS, mutate_from};
+
 /// A fresh, empty scratch directory, removed on drop.
 struct Scratch(PathBuf);
 
@@ -258,3 +260,56 @@ fn report_writes_markdown_csv_and_plot() {
     let plot = image::open(dir.join("error_vs_time.png")).unwrap();
     assert_eq!((plot.width(), plot.height()), (1000, 640));
 }
+
+/// Scene A as shipped, the base of the mutations.
+const SPHERES: &str = include_str!("../../../scenes/spheres.toml");
+
+#[test]
+fn the_cli_rejects_mutated_scenes_cleanly() {
+    let scratch = Scratch::new("mutated");
+    let dir = scratch.path().to_path_buf();
+    let mut rejected = 0;
+    // A fixed, seeded selection of mutations, each through the real binary.
+    for k in 0..40usize {
+        let text = mutate_from(SCENE_TOKENS, SPHERES, (k % 3) as u8, k * 7919, k * 31, k * 13);
+        let scene = dir.join(format!("s{k}.toml"));
+        std::fs::write(&scene, &text).unwrap();
+        let out = dir.join(format!("o{k}.png"));
+        let run = Command::new(env!("CARGO_BIN_EXE_wavefront"))
+            .args([
+                "render",
+                scene.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--samples",
+                "1",
+            ])
+            .output()
+            .unwrap();
+        let stderr = String::from_utf8_lossy(&run.stderr);
+        assert!(
+            !stderr.contains("panicked"),
+            "panic on mutation {k}: {stderr}"
+        );
+        if run.status.success() {
+            assert!(out.exists(), "success without an image on mutation {k}");
+        } else {
+            rejected += 1;
+            assert_eq!(run.status.code(), Some(1), "{stderr}");
+            assert!(stderr.starts_with("error: "), "{stderr}");
+            assert_eq!(stderr.trim_end().lines().count(), 1, "one line: {stderr}");
+            assert!(!out.exists(), "output left behind on mutation {k}");
+        }
+    }
+    assert!(
+        rejected > 5,
+        "the mutations must produce errors to test ({rejected})"
+    );
+    let leftovers: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .filter(|e| e.file_name().to_string_lossy().ends_with(".partial"))
+        .collect();
+    assert!(leftovers.is_empty(), "partial files left: {leftovers:?}");
+}
+

@@ -10,7 +10,7 @@
 
 use std::time::Instant;
 
-use wavefront::peer::embree::{EmbreeScene, TraceOpts};
+use wavefront_kit::peer::embree::{EmbreeScene, TraceOpts};
 
 /// Minimal `v` / `f` OBJ reader (the main crate has its own loader).
 fn load_obj(path: &str) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {

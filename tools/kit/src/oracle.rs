@@ -14,9 +14,9 @@ use std::fmt;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::mesh::TriangleMesh;
-use crate::sampling::sample_offset;
-use crate::scene::{RenderMode, Scene};
+use wavefront::mesh::TriangleMesh;
+use wavefront::sampling::sample_offset;
+use wavefront::scene::{RenderMode, Scene};
 
 /// A rendered image in linear radiance, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -595,7 +595,7 @@ mod tests {
     // Materials are stored in f32 (0.2 is 0.2000000030), so shading checks allow 1e-7.
 
     use super::*;
-    use crate::scene::builtin::spheres;
+    use wavefront::scene::builtin::spheres;
 
     /// Scene A shrunk to one pixel looking straight down -z at the green sphere.
     fn one_pixel_scene() -> Scene {
@@ -675,10 +675,10 @@ mod tests {
         scene.spheres.clear();
         scene.planes.clear();
         scene.materials[0].alpha = 0.0;
-        scene.meshes = vec![crate::scene::MeshRef {
+        scene.meshes = vec![wavefront::scene::MeshRef {
             path: "unused.obj".into(),
             material: 0,
-            kdtree: crate::scene::TreeSource::Sah,
+            kdtree: wavefront::scene::TreeSource::Sah,
         }];
         let mesh = TriangleMesh {
             vertices: vec![[-1.0, -1.0, -3.0], [1.0, -1.0, -3.0], [0.0, 1.0, -3.0]],

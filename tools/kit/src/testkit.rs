@@ -1,12 +1,9 @@
 //! Shared fixtures for the integration tests: rendering a scene to 8-bit RGB, thread pools of a
 //! given size, and the external data (Sibenik mesh, reference figures) with graceful skipping.
 
-// Each test binary uses a different subset of these helpers.
-#![allow(dead_code)]
-
 use std::path::{Path, PathBuf};
 
-use wavefront::oracle::{OracleImage, render_oracle};
+use crate::oracle::{OracleImage, render_oracle};
 use wavefront::{Film, RenderOptions, Scene, World};
 
 /// Loads `scene`'s world and renders it with `options`.
@@ -48,23 +45,39 @@ pub fn oracle_png_bytes(scene: &Scene) -> Vec<u8> {
     oracle_image(scene).to_rgb8(f64::from(scene.image.gamma))
 }
 
-/// The Sibenik mesh path the built-in scenes use.
-pub fn sibenik_mesh_path() -> PathBuf {
-    wavefront::scene::builtin::sibenik_mesh_path()
+/// The workspace root (where `Cargo.toml`, `src/` and `tests/` are), from this crate's location.
+pub fn project_root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// Prints why a test is skipped and returns `None` when `path` is missing, else `Some(path)`.
+/// Environment variable that turns a missing data file from a skip into a failure (`.ci/run`
+/// sets it: CI has `../shared`).
+pub const REQUIRE_DATA_ENV: &str = "WAVEFRONT_REQUIRE_DATA";
+
+/// The Sibenik mesh path the built-in scenes use, resolved against the project root (so tests of
+/// any workspace member find it): `$WAVEFRONT_SIBENIK`, else `../shared/data/sibenik/sibenik.obj`.
+pub fn sibenik_mesh_path() -> PathBuf {
+    wavefront::scene::builtin::sibenik_mesh_path_in(&project_root())
+}
+
+/// `Some(path)` when `path` exists. When it does not: with `WAVEFRONT_REQUIRE_DATA=1`, panics
+/// naming the path (the test fails); otherwise prints why the test is skipped and returns `None`.
 pub fn skip_if_missing(path: &Path, what: &str) -> Option<PathBuf> {
     if path.exists() {
-        Some(path.to_path_buf())
-    } else {
-        eprintln!(
-            "SKIPPED: {what} not found at {} — this test needs it; see SPEC §5 and \
-             ../shared/reference/README.md for where it belongs",
-            path.display()
-        );
-        None
+        return Some(path.to_path_buf());
     }
+    let required = std::env::var_os(REQUIRE_DATA_ENV).is_some_and(|v| v == "1");
+    assert!(
+        !required,
+        "{what} not found at {} and {REQUIRE_DATA_ENV}=1: this test needs it (see SPEC §5)",
+        path.display()
+    );
+    eprintln!(
+        "SKIPPED: {what} not found at {} — this test needs it; see SPEC §5 and \
+         ../shared/reference/README.md for where it belongs",
+        path.display()
+    );
+    None
 }
 
 /// The Sibenik mesh, or `None` (with a message) when it is not installed.
@@ -72,9 +85,27 @@ pub fn sibenik_mesh() -> Option<PathBuf> {
     skip_if_missing(&sibenik_mesh_path(), "the Sibenik mesh (sibenik.obj)")
 }
 
-/// `../shared/reference` beside the project root, or `None` (with a message) when missing.
+/// The built-in Sibenik scene (with or without shadows) with its mesh path resolved against the
+/// project root, or `None` (see [`skip_if_missing`]).
+pub fn sibenik_scene(shadows: bool) -> Option<Scene> {
+    let path = sibenik_mesh()?;
+    let mut scene = wavefront::scene::builtin::sibenik(shadows);
+    scene.meshes[0].path = path;
+    Some(scene)
+}
+
+/// The Sibenik mesh loaded, or `None` (see [`skip_if_missing`]).
+pub fn sibenik_triangles() -> Option<wavefront::mesh::TriangleMesh> {
+    let path = sibenik_mesh()?;
+    Some(
+        wavefront::mesh::TriangleMesh::load_obj(&path)
+            .unwrap_or_else(|e| panic!("cannot load {}: {e}", path.display())),
+    )
+}
+
+/// `../shared/reference` beside the project root, or `None` (see [`skip_if_missing`]).
 pub fn reference_dir() -> Option<PathBuf> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/reference");
+    let dir = project_root().join("../shared/reference");
     skip_if_missing(&dir, "the assignment's reference figures directory")
 }
 
@@ -139,3 +170,72 @@ impl Rng {
         (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
     }
 }
+
+/// Replacement tokens that stress the parser and the validation.
+pub const SCENE_TOKENS: &[&str] = &[
+    "nan",
+    "inf",
+    "-inf",
+    "1e309",
+    "-1.0",
+    "0",
+    "0.0",
+    "\"x\"",
+    "[]",
+    "[1.0]",
+    "[1.0, 2.0, 3.0, 4.0]",
+    "{}",
+    "true",
+    "=",
+    "[",
+    "]",
+    "[[sphere]]",
+    "[material.red]",
+    "radius = -2.0",
+    "alpha = 2.0",
+    "material = \"none\"",
+    "samples = 0",
+    "max_depth = 100000",
+    "width = 0",
+    "\u{0}",
+    "é",
+    "#",
+    "\"",
+    "4294967296",
+    "-9223372036854775808",
+];
+
+/// A mutation of `text`: replace a byte range with one of `tokens`, delete a range, insert a
+/// token, or duplicate a line.
+pub fn mutate_from(
+    tokens: &[&str],
+    text: &str,
+    kind: u8,
+    at: usize,
+    len: usize,
+    token: usize,
+) -> String {
+    let mut t = text.to_owned();
+    let mut at = at % (t.len() + 1);
+    while !t.is_char_boundary(at) {
+        at -= 1;
+    }
+    let mut end = (at + len % 16).min(t.len());
+    while !t.is_char_boundary(end) {
+        end -= 1;
+    }
+    let tok = tokens[token % tokens.len()];
+    match kind % 4 {
+        0 => t.replace_range(at..end, tok),
+        1 => t.replace_range(at..end, ""),
+        2 => t.insert_str(at, tok),
+        _ => {
+            let line_start = t[..at].rfind('\n').map_or(0, |i| i + 1);
+            let line_end = t[at..].find('\n').map_or(t.len(), |i| at + i);
+            let line = t[line_start..line_end].to_owned();
+            t.insert_str(line_end, &format!("\n{line}"));
+        }
+    }
+    t
+}
+
