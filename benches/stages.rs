@@ -1,8 +1,8 @@
 //! Criterion benches: one group per stage over a snapshot of its input queue, plus full frames,
 //! kD tree builds and OBJ loading.
 //!
-//! Reads: scene A (built in) and, when present, the Sibenik mesh at
-//! `wavefront::scene::builtin::sibenik_mesh_path()` (its benches are skipped with a message
+//! Reads: scene A (built in) and, when present, the Sibenik mesh
+//! (`wavefront_kit::testkit::sibenik_mesh`) (its benches are skipped with a message
 //! otherwise). Snapshots come from [`wavefront_kit::bench::StageBench`], the same code
 //! `wavefront bench` times; each stage bench times exactly that kernel, with
 //! `Throughput::Elements(rays)` so criterion reports rays per second. Everything runs on rayon's
@@ -15,18 +15,18 @@
 //! `cargo bench --bench stages -- spheres` runs only the scene A benches.
 
 use std::hint::black_box;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use criterion::{
     BenchmarkId, Criterion, SamplingMode, Throughput, criterion_group, criterion_main,
 };
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
-use wavefront_kit::bench::StageBench;
 use wavefront::mesh::TriangleMesh;
-use wavefront::scene::builtin::{self, sibenik_mesh_path};
-use wavefront::stages::Stage;
-use wavefront::{RenderOptions, Scene, World, render};
+use wavefront::scene::builtin;
+use wavefront::{RenderOptions, Scene, Stage, World, render};
+use wavefront_kit::bench::StageBench;
+use wavefront_kit::testkit::{sibenik_mesh, sibenik_scene};
 
 /// A scene with its loaded geometry.
 struct Fixture {
@@ -48,17 +48,7 @@ fn spheres() -> Fixture {
 /// `sibenik-shadows` (its primary rays are also `sibenik`'s), or `None` with a message when the
 /// mesh is missing.
 fn sibenik_shadows() -> Option<Fixture> {
-    let path = sibenik_mesh_path();
-    if path.exists() {
-        Some(Fixture::new(builtin::sibenik(true)))
-    } else {
-        eprintln!(
-            "skipping Sibenik benches: {} not found (set {} to its path)",
-            path.display(),
-            builtin::SIBENIK_ENV
-        );
-        None
-    }
+    sibenik_scene(true).map(Fixture::new)
 }
 
 /// Benches `stage` at `depth` of `bench`'s snapshot as `STAGE/LABEL/depthD`.
@@ -70,7 +60,17 @@ fn stage_bench(c: &mut Criterion, bench: &mut StageBench, label: &str, stage: St
     let mut group = c.benchmark_group(stage.label());
     group.throughput(Throughput::Elements(rays as u64));
     group.bench_function(BenchmarkId::new(label, format!("depth{depth}")), |b| {
-        b.iter(|| black_box(bench.run(stage, depth)))
+        // Each iteration gets a fresh copy of the stage's input; only the stage is timed.
+        b.iter_custom(|iters| {
+            let mut total = Duration::ZERO;
+            for _ in 0..iters {
+                bench.prepare(stage, depth);
+                let start = Instant::now();
+                black_box(bench.run_prepared(stage, depth));
+                total += start.elapsed();
+            }
+            total
+        })
     });
     group.finish();
 }
@@ -117,21 +117,17 @@ fn frames(c: &mut Criterion) {
 
     if let Some(b) = sibenik_shadows() {
         // Both Sibenik scenes share geometry; they differ only in the schedule's shadow stage.
-        let plain = builtin::sibenik(false);
+        let mut plain = builtin::sibenik(false);
+        plain.meshes = b.scene.meshes.clone();
         frame(c, "sibenik", &plain, &b.world);
         frame(c, "sibenik-shadows", &b.scene, &b.world);
     }
 }
 
 fn builds(c: &mut Criterion) {
-    let path = sibenik_mesh_path();
-    if !path.exists() {
-        eprintln!(
-            "skipping build/ and load/ benches: {} not found",
-            path.display()
-        );
+    let Some(path) = sibenik_mesh() else {
         return;
-    }
+    };
     let mesh = TriangleMesh::load_obj(&path).expect("sibenik loads");
     let mut group = c.benchmark_group("build");
     group.sampling_mode(SamplingMode::Flat);

@@ -11,6 +11,7 @@ use rayon::prelude::*;
 
 use crate::error::OutputError;
 use crate::queue::{MIN_CHUNK, SampleSlot};
+use crate::wave::Wave;
 
 /// Linear radiance of every sample of one wave, indexed by [`SampleSlot`].
 #[derive(Clone, Debug, Default)]
@@ -25,27 +26,27 @@ impl SampleBuffer {
         self.radiance.clear();
         self.radiance.resize(n, Vec3::ZERO);
     }
+}
 
-    /// `radiance[slot[i]] += value[i]` for every row `i` with `keep(i)`.
-    ///
-    /// `slot` must be non-decreasing (every queue is). Rows are split between tasks only where the
-    /// slot changes, so each sample is summed by one task in row order, bit-identically on any
-    /// number of threads.
-    pub fn add_sorted(
-        &mut self,
-        slot: &[SampleSlot],
-        value: &[Vec3],
-        keep: impl Fn(usize) -> bool + Sync,
-    ) {
-        debug_assert_eq!(slot.len(), value.len());
-        debug_assert!(
-            slot.windows(2).all(|w| w[0] <= w[1]),
-            "slots must be sorted"
-        );
-        let Some(first) = slot.first() else { return };
-        let base = first.0 as usize;
-        add_range(&mut self.radiance[base..], base, slot, value, 0, &keep);
-    }
+/// `radiance[slot[i]] += value[i]` for every row `i` with `keep(i)`.
+///
+/// `slot` must be non-decreasing (every queue is). Rows are split between tasks only where the
+/// slot changes, so each sample is summed by one task in row order, bit-identically on any number
+/// of threads.
+pub fn add_sorted(
+    radiance: &mut [Vec3],
+    slot: &[SampleSlot],
+    value: &[Vec3],
+    keep: impl Fn(usize) -> bool + Sync,
+) {
+    debug_assert_eq!(slot.len(), value.len());
+    debug_assert!(
+        slot.windows(2).all(|w| w[0] <= w[1]),
+        "slots must be sorted"
+    );
+    let Some(first) = slot.first() else { return };
+    let base = first.0 as usize;
+    add_range(&mut radiance[base..], base, slot, value, 0, &keep);
 }
 
 /// Adds rows `offset..offset + slot.len()` into `out`, which starts at sample `base`.
@@ -104,12 +105,13 @@ impl Film {
         }
     }
 
-    /// Averages `samples` consecutive slots of `buffer` into consecutive pixels starting at
-    /// `first_pixel` (the box filter), in a fixed order.
-    pub fn resolve_wave(&mut self, buffer: &SampleBuffer, first_pixel: usize, samples: usize) {
-        let n = buffer.radiance.len() / samples;
+    /// Averages each pixel's samples in `buffer` (slots as `wave` maps them) into the wave's
+    /// pixels: the box filter, in a fixed order.
+    pub fn resolve_wave(&mut self, buffer: &SampleBuffer, wave: &Wave) {
+        let samples = wave.samples as usize;
+        let (first, n) = (wave.first_pixel.0 as usize, wave.pixels as usize);
         let inv = 1.0 / samples as f32;
-        self.pixels[first_pixel..first_pixel + n]
+        self.pixels[first..first + n]
             .par_iter_mut()
             .with_min_len(MIN_CHUNK)
             .zip(buffer.radiance.par_chunks_exact(samples))
@@ -201,7 +203,7 @@ mod tests {
         b.reset(4);
         let slots = [SampleSlot(1), SampleSlot(1), SampleSlot(3)];
         let vals = [Vec3::ONE, Vec3::splat(2.0), Vec3::splat(5.0)];
-        b.add_sorted(&slots, &vals, |i| i != 2);
+        add_sorted(&mut b.radiance, &slots, &vals, |i| i != 2);
         assert_eq!(
             b.radiance,
             vec![Vec3::ZERO, Vec3::splat(3.0), Vec3::ZERO, Vec3::ZERO]
@@ -222,7 +224,7 @@ mod tests {
                 .unwrap();
             let mut b = SampleBuffer::default();
             b.reset(n as usize / 3 + 1);
-            pool.install(|| b.add_sorted(&slots, &vals, |_| true));
+            pool.install(|| add_sorted(&mut b.radiance, &slots, &vals, |_| true));
             b.radiance
         };
         let one = run(1);
@@ -250,7 +252,12 @@ mod tests {
         b.reset(4);
         b.radiance = vec![Vec3::ONE, Vec3::ZERO, Vec3::splat(0.5), Vec3::splat(0.5)];
         let mut f = Film::new(2, 2);
-        f.resolve_wave(&b, 2, 2);
+        let wave = Wave {
+            first_pixel: crate::queue::PixelIndex(2),
+            pixels: 2,
+            samples: 2,
+        };
+        f.resolve_wave(&b, &wave);
         assert_eq!(
             f.pixels,
             vec![Vec3::ZERO, Vec3::ZERO, Vec3::splat(0.5), Vec3::splat(0.5)]

@@ -34,6 +34,7 @@ pub mod sampling;
 pub mod scene;
 pub mod schedule;
 pub mod stats;
+pub mod wave;
 pub mod world;
 
 #[path = "../stages/mod.rs"]
@@ -41,7 +42,7 @@ pub mod stages;
 
 pub use film::Film;
 pub use scene::Scene;
-pub use schedule::{Pipeline, RenderOptions, render};
+pub use schedule::{Pipeline, RenderOptions, Stage, render, render_observed};
 pub use stats::Stats;
 pub use world::World;
 

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::time::Duration;
 
-use crate::stages::Stage;
+use crate::schedule::{Observer, Queues, Stage, StageRun};
 
 /// Totals for one (depth, stage) over all waves.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -59,6 +59,13 @@ impl Stats {
     /// The entry for (depth, stage), if that stage ran at that depth.
     pub fn get(&self, depth: u32, stage: Stage) -> Option<&StageStat> {
         self.entries.get(&(depth, stage))
+    }
+}
+
+/// Stats are collected by watching the schedule.
+impl Observer for Stats {
+    fn after(&mut self, run: &StageRun, _queues: &Queues<'_>) {
+        self.record(run.stage, run.depth, run.rays_in, run.rays_out, run.elapsed);
     }
 }
 

@@ -44,13 +44,18 @@ pub struct Surface {
 #[derive(Debug)]
 pub struct Triangles {
     /// All meshes' triangles, in scene order; triangle ids are indices into this mesh.
-    pub mesh: TriangleMesh,
+    mesh: TriangleMesh,
     /// Material of each triangle (one entry per mesh: `(first triangle, material)`).
-    pub material_ranges: Vec<(u32, u32)>,
+    material_ranges: Vec<(u32, u32)>,
     /// The kD tree over `mesh`.
-    pub tree: KdTree,
+    tree: KdTree,
     /// Where the tree came from.
-    pub source: TreeSource,
+    source: TreeSource,
+}
+
+/// How long a world took to set up (not part of the world: it does not change what is traced).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SetupTimes {
     /// Seconds spent loading the OBJ files.
     pub load_seconds: f64,
     /// Seconds spent building or reading the tree.
@@ -58,6 +63,21 @@ pub struct Triangles {
 }
 
 impl Triangles {
+    /// The merged mesh.
+    pub fn mesh(&self) -> &TriangleMesh {
+        &self.mesh
+    }
+
+    /// The kD tree over [`Triangles::mesh`].
+    pub fn tree(&self) -> &KdTree {
+        &self.tree
+    }
+
+    /// Where the tree came from.
+    pub fn source(&self) -> &TreeSource {
+        &self.source
+    }
+
     /// Material of triangle `k`.
     #[inline]
     pub fn material(&self, k: u32) -> u32 {
@@ -69,39 +89,78 @@ impl Triangles {
     }
 }
 
-/// A scene ready to trace.
+/// A scene ready to trace: read-only once built, reached through the accessors the stages need.
 #[derive(Debug)]
 pub struct World {
-    /// Spheres.
-    pub spheres: Vec<Sphere>,
-    /// Planes.
-    pub planes: Vec<Plane>,
-    /// Triangles and their tree; `None` when the scene has no mesh (no acceleration structure).
-    pub triangles: Option<Triangles>,
-    /// Materials.
-    pub materials: Vec<Material>,
-    /// Lights.
-    pub lights: Vec<PointLight>,
-    /// Numerical variants.
-    pub robustness: Robustness,
+    spheres: Vec<Sphere>,
+    planes: Vec<Plane>,
+    /// `None` when the scene has no mesh (no acceleration structure).
+    triangles: Option<Triangles>,
+    materials: Vec<Material>,
+    lights: Vec<PointLight>,
+    robustness: Robustness,
 }
 
 impl World {
     /// Loads the scene's meshes and builds (or reads) their tree.
     pub fn load(scene: &Scene) -> Result<World, LoadError> {
-        let triangles = if scene.meshes.is_empty() {
-            None
+        Ok(World::load_timed(scene)?.0)
+    }
+
+    /// [`World::load`], also saying how long loading and building took.
+    pub fn load_timed(scene: &Scene) -> Result<(World, SetupTimes), LoadError> {
+        let (triangles, times) = if scene.meshes.is_empty() {
+            (None, SetupTimes::default())
         } else {
-            Some(load_triangles(scene)?)
+            let (t, times) = load_triangles(scene)?;
+            (Some(t), times)
         };
-        Ok(World {
+        let world = World {
             spheres: scene.spheres.clone(),
             planes: scene.planes.clone(),
             triangles,
             materials: scene.materials.clone(),
             lights: scene.lights.clone(),
             robustness: scene.render.robustness,
-        })
+        };
+        Ok((world, times))
+    }
+
+    /// The same geometry traced with other numerical variants (the error report compares them
+    /// without reloading the mesh).
+    pub fn with_robustness(mut self, robustness: Robustness) -> World {
+        self.robustness = robustness;
+        self
+    }
+
+    /// Materials, indexed by the material ids of primitives.
+    pub fn materials(&self) -> &[Material] {
+        &self.materials
+    }
+
+    /// Point lights.
+    pub fn lights(&self) -> &[PointLight] {
+        &self.lights
+    }
+
+    /// Spheres.
+    pub fn spheres(&self) -> &[Sphere] {
+        &self.spheres
+    }
+
+    /// Planes.
+    pub fn planes(&self) -> &[Plane] {
+        &self.planes
+    }
+
+    /// The merged triangle mesh and its tree, if the scene has meshes.
+    pub fn triangles(&self) -> Option<&Triangles> {
+        self.triangles.as_ref()
+    }
+
+    /// The numerical variants traced.
+    pub fn robustness(&self) -> Robustness {
+        self.robustness
     }
 
     /// Builds a world around an already loaded mesh and tree (for tests and benchmarks).
@@ -115,8 +174,6 @@ impl World {
                 material_ranges: vec![(0, material)],
                 tree,
                 source: TreeSource::Sah,
-                load_seconds: 0.0,
-                tree_seconds: 0.0,
             }),
             materials: scene.materials.clone(),
             lights: scene.lights.clone(),
@@ -301,7 +358,7 @@ impl World {
     }
 }
 
-fn load_triangles(scene: &Scene) -> Result<Triangles, LoadError> {
+fn load_triangles(scene: &Scene) -> Result<(Triangles, SetupTimes), LoadError> {
     let start = Instant::now();
     let mut mesh = TriangleMesh::default();
     let mut material_ranges = Vec::with_capacity(scene.meshes.len());
@@ -325,14 +382,17 @@ fn load_triangles(scene: &Scene) -> Result<Triangles, LoadError> {
         TreeSource::Midpoint => KdTree::build(&mesh, BuildMethod::Midpoint),
         TreeSource::File(path) => KdTree::load_text(path, mesh.len())?,
     };
-    Ok(Triangles {
+    let times = SetupTimes {
+        load_seconds,
+        tree_seconds: start.elapsed().as_secs_f64(),
+    };
+    let triangles = Triangles {
         mesh,
         material_ranges,
         tree,
         source,
-        load_seconds,
-        tree_seconds: start.elapsed().as_secs_f64(),
-    })
+    };
+    Ok((triangles, times))
 }
 
 /// One tree covers all meshes: a tree file only makes sense for a single mesh.

@@ -1,7 +1,8 @@
 //! Stage `generate`: camera rays for one wave of pixels (SPEC §1).
 //!
 //! Reads: camera, image settings, the wave's pixel range.
-//! Writes: `RayQueue.{origin, direction, t_max, weight, slot}`, one row per sample, slots in order.
+//! Writes: [`CameraRays`] — every column of the depth-0 `RayQueue`, one row per sample, slots in
+//! order.
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -9,27 +10,16 @@ use rayon::prelude::*;
 use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
 use crate::sampling::Strata;
 use crate::scene::{Camera, ImageSettings};
+use crate::wave::Wave;
 
-/// A contiguous range of pixels rendered together; its samples fill slots `0..len()`.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Wave {
-    /// First pixel (row-major index).
-    pub first_pixel: u32,
-    /// Number of pixels.
-    pub pixels: u32,
-    /// Samples per pixel.
-    pub samples: u32,
-}
-
-impl Wave {
-    /// Number of samples (= primary rays) in the wave.
-    pub fn len(&self) -> usize {
-        self.pixels as usize * self.samples as usize
-    }
-
-    /// True when the wave holds no pixels.
-    pub fn is_empty(&self) -> bool {
-        self.pixels == 0
+crate::column_set! {
+    /// What `generate_camera_rays` writes: the whole depth-0 ray queue.
+    pub struct CameraRays<'a>: RayQueue {
+        write origin: Vec3,
+        write direction: Vec3,
+        write t_max: f32,
+        write weight: Vec3,
+        write slot: SampleSlot,
     }
 }
 
@@ -41,59 +31,57 @@ pub fn camera_ray(
     image: &ImageSettings,
     wave: &Wave,
     strata: &Strata,
-    slot: u32,
+    slot: SampleSlot,
 ) -> RayItem {
-    let pixel = wave.first_pixel + slot / wave.samples;
-    let s = slot % wave.samples;
-    let (i, j) = (pixel % image.width, pixel / image.width);
-    let (dx, dy) = strata.offset(image.seed, pixel, s);
-    let d = camera.direction(i as f32 + dx, j as f32 + dy, image.width, image.height);
+    let (pixel, s) = wave.pixel_of(slot);
+    let (dx, dy) = strata.offset(image.seed, pixel.0, s);
     RayItem {
         origin: camera.eye,
-        direction: d.normalize(),
+        direction: camera.ray_direction(pixel, (dx, dy), image.width, image.height),
         t_max: f32::INFINITY,
         weight: Vec3::ONE,
-        slot: SampleSlot(slot),
+        slot,
     }
 }
 
-/// Fills `rays` with the wave's camera rays, one per sample, in slot order.
+/// Fills `out` with the wave's camera rays, one per sample, in slot order.
 pub fn generate_camera_rays(
     camera: &Camera,
     image: &ImageSettings,
     wave: &Wave,
-    rays: &mut RayQueue,
+    out: CameraRays<'_>,
 ) {
     let n = wave.len();
     let strata = Strata::new(wave.samples);
     let rows = || (0..n as u32).into_par_iter().with_min_len(MIN_CHUNK);
     rows()
-        .map(|s| camera_ray(camera, image, wave, &strata, s).direction)
-        .collect_into_vec(&mut rays.direction);
-    rays.origin.clear();
-    rays.origin.resize(n, camera.eye);
-    rays.t_max.clear();
-    rays.t_max.resize(n, f32::INFINITY);
-    rays.weight.clear();
-    rays.weight.resize(n, Vec3::ONE);
-    rows().map(SampleSlot).collect_into_vec(&mut rays.slot);
+        .map(|s| camera_ray(camera, image, wave, &strata, SampleSlot(s)).direction)
+        .collect_into_vec(out.direction);
+    out.origin.clear();
+    out.origin.resize(n, camera.eye);
+    out.t_max.clear();
+    out.t_max.resize(n, f32::INFINITY);
+    out.weight.clear();
+    out.weight.resize(n, Vec3::ONE);
+    rows().map(SampleSlot).collect_into_vec(out.slot);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::queue::PixelIndex;
     use crate::scene::builtin::spheres;
 
     #[test]
     fn fills_every_column_for_every_sample() {
         let scene = spheres();
         let wave = Wave {
-            first_pixel: 512 * 256,
+            first_pixel: PixelIndex(512 * 256),
             pixels: 3,
             samples: 4,
         };
         let mut q = RayQueue::default();
-        generate_camera_rays(&scene.camera, &scene.image, &wave, &mut q);
+        generate_camera_rays(&scene.camera, &scene.image, &wave, CameraRays::of(&mut q));
         assert_eq!(q.len(), 12);
         assert_eq!(q.origin.len(), 12);
         assert_eq!(q.weight[5], Vec3::ONE);
@@ -104,7 +92,13 @@ mod tests {
         }
         assert_eq!(
             q.get(7),
-            camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(4), 7)
+            camera_ray(
+                &scene.camera,
+                &scene.image,
+                &wave,
+                &Strata::new(4),
+                SampleSlot(7)
+            )
         );
     }
 
@@ -114,15 +108,15 @@ mod tests {
         scene.image.width = 2;
         scene.image.height = 2;
         let wave = Wave {
-            first_pixel: 0,
+            first_pixel: PixelIndex(0),
             pixels: 4,
             samples: 1,
         };
-        let r = camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(1), 0);
+        let ray = |s| camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(1), s);
         // Pixel (0, 0) is the top-left: us = -0.05, vs = +0.05.
         let expected = Vec3::new(-0.05, 0.05, -0.1).normalize();
-        assert!((r.direction - expected).length() < 1e-7);
-        let r = camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(1), 3);
-        assert!((r.direction - Vec3::new(0.05, -0.05, -0.1).normalize()).length() < 1e-7);
+        assert!((ray(SampleSlot(0)).direction - expected).length() < 1e-7);
+        let expected = Vec3::new(0.05, -0.05, -0.1).normalize();
+        assert!((ray(SampleSlot(3)).direction - expected).length() < 1e-7);
     }
 }

@@ -1,26 +1,66 @@
 //! Stage `intersect`: the closest hit of every ray, then the hits compacted in order.
 //!
-//! Reads: `RayQueue.{origin, direction, t_max}` (and `weight`, `slot` to carry them along).
-//! Writes: `HitColumns.{t, prim}` row for row, then `HitQueue.{origin, direction, weight, slot,
-//! t, prim}` for the rows that hit. Misses leave the pipeline (the sky is black).
+//! Reads: [`ClosestRays`] (`RayQueue.{origin, direction, t_max}`), then [`CompactRays`] and
+//! [`CompactHits`] to carry the rays that hit along.
+//! Writes: [`ClosestOut`] (`HitColumns.{t, prim}`, row for row), then [`CompactOut`]
+//! (`HitQueue.{origin, direction, weight, slot, t, prim}`) for the rows that hit. Misses leave the
+//! pipeline (the sky is black).
 
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::queue::compact::{gather, kept_rows};
-use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue};
+use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue, RowIndex, SampleSlot};
 use crate::world::World;
 
-/// Closest hit of every ray in `rays` into `hits` (one row per ray). Chunks of rays go through
+crate::column_set! {
+    /// What `intersect_closest` reads.
+    pub struct ClosestRays<'a>: read RayQueue { origin: Vec3, direction: Vec3, t_max: f32 }
+}
+
+crate::column_set! {
+    /// What `intersect_closest` writes: one answer per ray.
+    pub struct ClosestOut<'a>: HitColumns { write t: f32, write prim: PrimId }
+}
+
+crate::column_set! {
+    /// The ray columns `compact_hits` carries into the hit queue.
+    pub struct CompactRays<'a>: read RayQueue {
+        origin: Vec3,
+        direction: Vec3,
+        weight: Vec3,
+        slot: SampleSlot,
+    }
+}
+
+crate::column_set! {
+    /// The answers `compact_hits` filters on and carries along.
+    pub struct CompactHits<'a>: read HitColumns { t: f32, prim: PrimId }
+}
+
+crate::column_set! {
+    /// What `compact_hits` writes: the rays that hit, in slot order.
+    pub struct CompactOut<'a>: HitQueue {
+        write origin: Vec3,
+        write direction: Vec3,
+        write weight: Vec3,
+        write slot: SampleSlot,
+        write t: f32,
+        write prim: PrimId,
+    }
+}
+
+/// Closest hit of every ray (one row per ray). Chunks of rays go through
 /// [`World::intersect_closest_batch`] (packets of consecutive, coherent rays).
-pub fn intersect_closest(world: &World, rays: &RayQueue, hits: &mut HitColumns) {
-    let n = rays.len();
-    hits.t.clear();
-    hits.t.resize(n, f32::INFINITY);
-    hits.prim.clear();
-    hits.prim.resize(n, PrimId::NONE);
-    hits.t
+pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
+    let n = rays.origin.len();
+    out.t.clear();
+    out.t.resize(n, f32::INFINITY);
+    out.prim.clear();
+    out.prim.resize(n, PrimId::NONE);
+    out.t
         .par_chunks_mut(MIN_CHUNK)
-        .zip(hits.prim.par_chunks_mut(MIN_CHUNK))
+        .zip(out.prim.par_chunks_mut(MIN_CHUNK))
         .enumerate()
         .for_each(|(c, (t, prim))| {
             let r = c * MIN_CHUNK..c * MIN_CHUNK + t.len();
@@ -35,22 +75,26 @@ pub fn intersect_closest(world: &World, rays: &RayQueue, hits: &mut HitColumns) 
 }
 
 /// Copies the rays that hit, with their hits, into `out` in slot order. `rows` is scratch.
-pub fn compact_hits(rays: &RayQueue, hits: &HitColumns, rows: &mut Vec<u32>, out: &mut HitQueue) {
-    kept_rows(rays.len(), |i| hits.prim[i].is_hit(), rows);
-    gather(&rays.origin, rows, &mut out.origin);
-    gather(&rays.direction, rows, &mut out.direction);
-    gather(&rays.weight, rows, &mut out.weight);
-    gather(&rays.slot, rows, &mut out.slot);
-    gather(&hits.t, rows, &mut out.t);
-    gather(&hits.prim, rows, &mut out.prim);
+pub fn compact_hits(
+    rays: CompactRays<'_>,
+    hits: CompactHits<'_>,
+    rows: &mut Vec<RowIndex>,
+    out: CompactOut<'_>,
+) {
+    kept_rows(hits.prim.len(), |i| hits.prim[i].is_hit(), rows);
+    gather(rays.origin, rows, out.origin);
+    gather(rays.direction, rows, out.direction);
+    gather(rays.weight, rows, out.weight);
+    gather(rays.slot, rows, out.slot);
+    gather(hits.t, rows, out.t);
+    gather(hits.prim, rows, out.prim);
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::queue::{PrimId, RayItem, SampleSlot};
+    use crate::queue::RayItem;
     use crate::scene::builtin::spheres;
-    use glam::Vec3;
 
     #[test]
     fn misses_leave_the_queue_and_hits_keep_their_order() {
@@ -69,7 +113,7 @@ mod tests {
         rays.push(towards(2, Vec3::new(-4.0, 0.0, -7.0))); // red sphere S1
         rays.push(towards(3, Vec3::new(0.0, -1.0, 0.0))); // floor, t = 2
         let mut hits = HitColumns::default();
-        intersect_closest(&world, &rays, &mut hits);
+        intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut hits));
         assert_eq!(
             hits.prim,
             vec![PrimId(1), PrimId::NONE, PrimId(0), PrimId(3)]
@@ -79,7 +123,12 @@ mod tests {
         assert_eq!(hits.t[3], 2.0);
 
         let mut out = HitQueue::default();
-        compact_hits(&rays, &hits, &mut vec![], &mut out);
+        compact_hits(
+            CompactRays::of(&rays),
+            CompactHits::of(&hits),
+            &mut vec![],
+            CompactOut::of(&mut out),
+        );
         assert_eq!(out.slot, vec![SampleSlot(0), SampleSlot(2), SampleSlot(3)]);
         assert_eq!(out.prim, vec![PrimId(1), PrimId(0), PrimId(3)]);
         assert_eq!(out.weight[2], Vec3::splat(3.0));
@@ -108,7 +157,7 @@ mod tests {
             });
         }
         let mut hits = HitColumns::default();
-        intersect_closest(&world, &rays, &mut hits);
+        intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut hits));
         assert_eq!(
             hits.prim,
             vec![PrimId::NONE, PrimId(1), PrimId::NONE, PrimId::NONE]

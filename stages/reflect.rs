@@ -1,19 +1,44 @@
 //! Stage `reflect`: mirror rays for the next depth from every hit on a reflective material.
 //!
-//! Reads: `HitQueue.{spawn, normal, material, direction, weight, slot}`, materials.
-//! Writes: the next depth's `RayQueue` (compacted, slot order) with `weight·α`.
+//! Reads: [`ReflectHits`] (`HitQueue.{spawn, normal, material, direction, weight, slot}`),
+//! materials.
+//! Writes: [`NextRays`] — the next depth's `RayQueue` (compacted, slot order), weight `weight·α`.
 
+use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::queue::compact::kept_rows;
-use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue};
+use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue, RowIndex, SampleSlot};
 use crate::world::World;
+
+crate::column_set! {
+    /// What `spawn_reflection_rays` reads.
+    pub struct ReflectHits<'a>: read HitQueue {
+        spawn: Vec3,
+        normal: Vec3,
+        material: u32,
+        direction: Vec3,
+        weight: Vec3,
+        slot: SampleSlot,
+    }
+}
+
+crate::column_set! {
+    /// What `spawn_reflection_rays` writes: the whole next-depth ray queue.
+    pub struct NextRays<'a>: RayQueue {
+        write origin: Vec3,
+        write direction: Vec3,
+        write t_max: f32,
+        write weight: Vec3,
+        write slot: SampleSlot,
+    }
+}
 
 /// The reflection of hit row `i`: `r = d − 2(d·n)n` from the offset hit point, weight `weight·α`.
 #[inline]
-pub fn reflection_ray(world: &World, hits: &HitQueue, i: usize) -> RayItem {
+pub fn reflection_ray(world: &World, hits: &ReflectHits<'_>, i: usize) -> RayItem {
     let (d, n) = (hits.direction[i], hits.normal[i]);
-    let alpha = world.materials[hits.material[i] as usize].alpha;
+    let alpha = world.materials()[hits.material[i] as usize].alpha;
     RayItem {
         origin: hits.spawn[i],
         direction: d - 2.0 * d.dot(n) * n,
@@ -23,33 +48,36 @@ pub fn reflection_ray(world: &World, hits: &HitQueue, i: usize) -> RayItem {
     }
 }
 
-/// Spawns the next depth's rays into `next` (cleared first); `rows` is scratch.
+/// Spawns the next depth's rays into `next` (overwritten); `rows` is scratch.
 pub fn spawn_reflection_rays(
     world: &World,
-    hits: &HitQueue,
-    rows: &mut Vec<u32>,
-    next: &mut RayQueue,
+    hits: ReflectHits<'_>,
+    rows: &mut Vec<RowIndex>,
+    next: NextRays<'_>,
 ) {
-    let reflects = |i: usize| world.materials[hits.material[i] as usize].reflects();
-    kept_rows(hits.len(), reflects, rows);
+    let materials = world.materials();
+    let reflects = |i: usize| materials[hits.material[i] as usize].reflects();
+    kept_rows(hits.slot.len(), reflects, rows);
     let n = rows.len();
-    next.clear();
-    next.origin.resize(n, Default::default());
-    next.direction.resize(n, Default::default());
+    for col in [&mut *next.origin, &mut *next.direction, &mut *next.weight] {
+        col.clear();
+        col.resize(n, Vec3::ZERO);
+    }
+    next.t_max.clear();
     next.t_max.resize(n, f32::INFINITY);
-    next.weight.resize(n, Default::default());
-    next.slot.resize(n, Default::default());
+    next.slot.clear();
+    next.slot.resize(n, SampleSlot::default());
     (
-        &mut next.origin,
-        &mut next.direction,
-        &mut next.weight,
-        &mut next.slot,
+        &mut *next.origin,
+        &mut *next.direction,
+        &mut *next.weight,
+        &mut *next.slot,
         rows.as_slice(),
     )
         .into_par_iter()
         .with_min_len(MIN_CHUNK)
         .for_each(|(o, d, w, s, &i)| {
-            let r = reflection_ray(world, hits, i as usize);
+            let r = reflection_ray(world, &hits, i.get());
             (*o, *d, *w, *s) = (r.origin, r.direction, r.weight, r.slot);
         });
 }
@@ -57,9 +85,8 @@ pub fn spawn_reflection_rays(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::queue::{PrimId, SampleSlot};
+    use crate::queue::PrimId;
     use crate::scene::builtin::spheres;
-    use glam::Vec3;
 
     #[test]
     fn only_reflective_hits_spawn_rays_with_alpha_weight() {
@@ -90,7 +117,12 @@ mod tests {
             hits.material.push(m);
         }
         let mut next = RayQueue::default();
-        spawn_reflection_rays(&world, &hits, &mut vec![], &mut next);
+        spawn_reflection_rays(
+            &world,
+            ReflectHits::of(&hits),
+            &mut vec![],
+            NextRays::of(&mut next),
+        );
         assert_eq!(next.len(), 1);
         let r = next.get(0);
         assert_eq!(r.slot, SampleSlot(11));

@@ -1,17 +1,64 @@
 //! Stage `shade`: local Whitted shading at every hit (SPEC §2) and the shadow rays it needs.
 //!
-//! Reads: `HitQueue.{origin, direction, weight, slot, t, prim}`, materials, lights.
-//! Writes: `HitQueue.{point, normal, material, spawn}`; `emitted` (one row per hit: the radiance added to
-//! the sample now, `(1 − α)·weight·(La [+ Ld + Ls when shadows are off])`); `ShadowQueue` (one row
-//! per hit and light that can light it, carrying `(1 − α)·weight·(Ld + Ls)`).
+//! Reads: [`ShadeHits`]' read columns (`HitQueue.{origin, direction, t, prim, weight, slot}`),
+//! materials, lights.
+//! Writes: [`ShadeHits`]' write columns — `HitQueue.{point, normal, material, spawn}` and
+//! `HitQueue.emitted` (the radiance added to the sample now, `(1 − α)·weight·(La [+ Ld + Ls when
+//! shadows are off])`) — and [`ShadowRays`]: one `ShadowQueue` row per hit and light that can
+//! light it, carrying `(1 − α)·weight·(Ld + Ls)`. [`add_emitted`] then adds `emitted` to the
+//! samples.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::film::SampleBuffer;
 use crate::queue::compact::{gather, kept_rows};
-use crate::queue::{HitQueue, MIN_CHUNK, ShadowQueue};
+use crate::queue::{HitQueue, MIN_CHUNK, PrimId, RowIndex, SampleSlot, ShadowQueue};
 use crate::scene::{Material, PointLight, Scene};
 use crate::world::{Surface, World};
+
+crate::column_set! {
+    /// What `shade_hits` reads and writes in the hit queue.
+    pub struct ShadeHits<'a>: HitQueue {
+        read origin: Vec3,
+        read direction: Vec3,
+        read t: f32,
+        read prim: PrimId,
+        read weight: Vec3,
+        read slot: SampleSlot,
+        write point: Vec3,
+        write normal: Vec3,
+        write material: u32,
+        write spawn: Vec3,
+        write emitted: Vec3,
+    }
+}
+
+crate::column_set! {
+    /// What `shade_hits` writes: the shadow rays, compacted in slot order.
+    pub struct ShadowRays<'a>: ShadowQueue {
+        write origin: Vec3,
+        write direction: Vec3,
+        write t_max: f32,
+        write radiance: Vec3,
+        write slot: SampleSlot,
+    }
+}
+
+crate::column_set! {
+    /// What `shade_hit_mask` reads and writes.
+    pub struct MaskHits<'a>: HitQueue { read weight: Vec3, write emitted: Vec3 }
+}
+
+crate::column_set! {
+    /// What `add_emitted` reads.
+    pub struct EmittedHits<'a>: read HitQueue { slot: SampleSlot, emitted: Vec3 }
+}
+
+crate::column_set! {
+    /// What `add_emitted` and the shadow stage's `add_unoccluded` write: the wave's samples.
+    pub struct Samples<'a>: SampleBuffer { write radiance: Vec3 }
+}
 
 /// What the shade kernel needs besides the world.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -84,12 +131,12 @@ pub fn shade_hit(
         material,
         spawn,
     } = *surface;
-    let m = &world.materials[material as usize];
+    let m = &world.materials()[material as usize];
     let w = weight * (1.0 - m.alpha);
     let v = -direction;
     let mut emitted = m.ka * settings.ambient;
     let origin = settings.shadows.then_some(spawn);
-    for (j, light) in world.lights.iter().enumerate() {
+    for (j, light) in world.lights().iter().enumerate() {
         let (c, n_dot_l) = direct_light(light, m, settings.specular, point, normal, v);
         match origin {
             None => emitted += c,
@@ -109,32 +156,31 @@ pub fn shade_hit(
 #[derive(Debug, Default)]
 pub struct ShadeScratch {
     candidates: ShadowQueue,
-    rows: Vec<u32>,
+    rows: Vec<RowIndex>,
 }
 
-/// Shades every hit in `hits`: fills its surface columns, `emitted` (one row per hit) and
-/// `shadows` (compacted, slot order).
+/// Shades every hit: fills its surface columns and `emitted` (one row per hit), and `shadows`
+/// (compacted, slot order).
 pub fn shade_hits(
     world: &World,
     settings: &ShadeSettings,
-    hits: &mut HitQueue,
-    emitted: &mut Vec<Vec3>,
+    hits: ShadeHits<'_>,
     scratch: &mut ShadeScratch,
-    shadows: &mut ShadowQueue,
+    shadows: ShadowRays<'_>,
 ) {
-    let n = hits.len();
+    let n = hits.prim.len();
     hits.point.resize(n, Vec3::ZERO);
     hits.normal.resize(n, Vec3::ZERO);
     hits.material.resize(n, 0);
     hits.spawn.resize(n, Vec3::ZERO);
     (
         (
-            &mut hits.point,
-            &mut hits.normal,
-            &mut hits.material,
-            &mut hits.spawn,
+            &mut *hits.point,
+            &mut *hits.normal,
+            &mut *hits.material,
+            &mut *hits.spawn,
         ),
-        (&hits.prim, &hits.origin, &hits.direction, &hits.t),
+        (hits.prim, hits.origin, hits.direction, hits.t),
     )
         .into_par_iter()
         .with_min_len(MIN_CHUNK)
@@ -143,7 +189,7 @@ pub fn shade_hits(
             (*p, *nrm, *m, *sp) = (s.point, s.normal, s.material, s.spawn);
         });
 
-    let lights = world.lights.len();
+    let lights = world.lights().len();
     let shadowed = settings.shadows && lights > 0;
     let c = &mut scratch.candidates;
     let rows = if shadowed { n * lights } else { 0 };
@@ -158,8 +204,8 @@ pub fn shade_hits(
             .flat_map(|&s| std::iter::repeat_n(s, if shadowed { lights } else { 0 })),
     );
 
-    let ray = (&hits.direction, &hits.weight);
-    let surface = (&hits.point, &hits.normal, &hits.material, &hits.spawn);
+    let ray = (hits.direction, hits.weight);
+    let surface = (&*hits.point, &*hits.normal, &*hits.material, &*hits.spawn);
     let at = |(&point, &normal, &material, &spawn): (&Vec3, &Vec3, &u32, &Vec3)| Surface {
         point,
         normal,
@@ -182,29 +228,36 @@ pub fn shade_hits(
                     None => rad[j] = Vec3::ZERO,
                 })
             })
-            .collect_into_vec(emitted);
+            .collect_into_vec(hits.emitted);
         kept_rows(rows, |i| c.radiance[i] != Vec3::ZERO, &mut scratch.rows);
-        gather(&c.origin, &scratch.rows, &mut shadows.origin);
-        gather(&c.direction, &scratch.rows, &mut shadows.direction);
-        gather(&c.t_max, &scratch.rows, &mut shadows.t_max);
-        gather(&c.radiance, &scratch.rows, &mut shadows.radiance);
-        gather(&c.slot, &scratch.rows, &mut shadows.slot);
+        gather(&c.origin, &scratch.rows, shadows.origin);
+        gather(&c.direction, &scratch.rows, shadows.direction);
+        gather(&c.t_max, &scratch.rows, shadows.t_max);
+        gather(&c.radiance, &scratch.rows, shadows.radiance);
+        gather(&c.slot, &scratch.rows, shadows.slot);
     } else {
         (ray, surface)
             .into_par_iter()
             .with_min_len(MIN_CHUNK)
             .map(|((&d, &w), s)| shade_hit(world, settings, (d, w), &at(s), |_, _| {}))
-            .collect_into_vec(emitted);
-        shadows.clear();
+            .collect_into_vec(hits.emitted);
+        for col in [shadows.origin, shadows.direction, shadows.radiance] {
+            col.clear();
+        }
+        shadows.t_max.clear();
+        shadows.slot.clear();
     }
 }
 
 /// The hit/miss mask variant of shade: every hit emits its weight (white for primary rays).
-///
-/// Reads: `HitQueue.weight`. Writes: `emitted`.
-pub fn shade_hit_mask(hits: &HitQueue, emitted: &mut Vec<Vec3>) {
-    emitted.clear();
-    emitted.extend_from_slice(&hits.weight);
+pub fn shade_hit_mask(hits: MaskHits<'_>) {
+    hits.emitted.clear();
+    hits.emitted.extend_from_slice(hits.weight);
+}
+
+/// Adds each hit's `emitted` radiance to its sample (in slot order: deterministic).
+pub fn add_emitted(hits: EmittedHits<'_>, samples: Samples<'_>) {
+    crate::film::add_sorted(samples.radiance, hits.slot, hits.emitted, |_| true);
 }
 
 #[cfg(test)]
@@ -242,15 +295,15 @@ mod tests {
         let world = World::load(&scene).unwrap();
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
-        let (mut emitted, mut shadows) = (vec![], ShadowQueue::default());
+        let mut shadows = ShadowQueue::default();
         shade_hits(
             &world,
             &settings,
-            &mut hits,
-            &mut emitted,
+            ShadeHits::of(&mut hits),
             &mut ShadeScratch::default(),
-            &mut shadows,
+            ShadowRays::of(&mut shadows),
         );
+        let emitted = &hits.emitted;
         assert!(shadows.is_empty());
         assert_eq!(emitted.len(), 3);
         // Green sphere facing the camera at (0, 0, -5), normal +z; light at (-4, 4, -3).
@@ -278,15 +331,15 @@ mod tests {
         let world = World::load(&scene).unwrap();
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
-        let (mut emitted, mut shadows) = (vec![], ShadowQueue::default());
+        let mut shadows = ShadowQueue::default();
         shade_hits(
             &world,
             &settings,
-            &mut hits,
-            &mut emitted,
+            ShadeHits::of(&mut hits),
             &mut ShadeScratch::default(),
-            &mut shadows,
+            ShadowRays::of(&mut shadows),
         );
+        let emitted = &hits.emitted;
         assert_eq!(emitted[0], Vec3::new(0.0, 0.2, 0.0), "ambient only");
         assert_eq!(emitted[1], Vec3::splat(0.1), "(1 − α)·ka");
         assert_eq!(shadows.len(), 3, "every hit here faces the light");
@@ -312,14 +365,13 @@ mod tests {
         let world = World::load(&scene).unwrap();
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
-        let (mut emitted, mut shadows) = (vec![], ShadowQueue::default());
+        let mut shadows = ShadowQueue::default();
         shade_hits(
             &world,
             &settings,
-            &mut hits,
-            &mut emitted,
+            ShadeHits::of(&mut hits),
             &mut ShadeScratch::default(),
-            &mut shadows,
+            ShadowRays::of(&mut shadows),
         );
         assert!(
             shadows.slot.iter().all(|&s| s != SampleSlot(1)),

@@ -1,40 +1,64 @@
-//! Stage `shadow`: any-hit occlusion of every shadow ray, with early exit.
+//! Stage `shadow`: any-hit occlusion of every shadow ray, with early exit, then the light of the
+//! unoccluded ones added to their samples.
 //!
-//! Reads: `ShadowQueue.{origin, direction, t_max}`.
-//! Writes: `occluded` (one flag per row). The schedule then adds `ShadowQueue.radiance` of the
-//! unoccluded rows to their samples.
+//! Reads: [`ShadowTrace`]' read columns (`ShadowQueue.{origin, direction, t_max}`); then
+//! [`LitRays`] (`ShadowQueue.{slot, radiance, occluded}`).
+//! Writes: `ShadowQueue.occluded` (one flag per row); the samples of the unoccluded rows.
 
+use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::queue::{MIN_CHUNK, ShadowQueue};
+use crate::queue::{MIN_CHUNK, SampleSlot, ShadowQueue};
+use crate::stages::shade::Samples;
 use crate::world::World;
+
+crate::column_set! {
+    /// What `intersect_occluded` reads and writes.
+    pub struct ShadowTrace<'a>: ShadowQueue {
+        read origin: Vec3,
+        read direction: Vec3,
+        read t_max: f32,
+        write occluded: bool,
+    }
+}
+
+crate::column_set! {
+    /// What `add_unoccluded` reads.
+    pub struct LitRays<'a>: read ShadowQueue { slot: SampleSlot, radiance: Vec3, occluded: bool }
+}
 
 /// Whether each shadow ray is blocked by anything strictly between its origin and its light.
 /// Chunks of rays go through [`World::intersect_occluded_batch`] (packets of consecutive rays).
-pub fn intersect_occluded(world: &World, shadows: &ShadowQueue, occluded: &mut Vec<bool>) {
-    let n = shadows.len();
-    occluded.clear();
-    occluded.resize(n, false);
-    occluded
+pub fn intersect_occluded(world: &World, rays: ShadowTrace<'_>) {
+    let n = rays.origin.len();
+    rays.occluded.clear();
+    rays.occluded.resize(n, false);
+    rays.occluded
         .par_chunks_mut(MIN_CHUNK)
         .enumerate()
         .for_each(|(c, out)| {
             let r = c * MIN_CHUNK..c * MIN_CHUNK + out.len();
             world.intersect_occluded_batch(
-                &shadows.origin[r.clone()],
-                &shadows.direction[r.clone()],
-                &shadows.t_max[r],
+                &rays.origin[r.clone()],
+                &rays.direction[r.clone()],
+                &rays.t_max[r],
                 out,
             );
         });
 }
 
+/// Adds the radiance of every unoccluded shadow ray to its sample; returns how many were lit.
+pub fn add_unoccluded(rays: LitRays<'_>, samples: Samples<'_>) -> usize {
+    let occluded = rays.occluded;
+    crate::film::add_sorted(samples.radiance, rays.slot, rays.radiance, |i| !occluded[i]);
+    occluded.iter().filter(|&&o| !o).count()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::queue::{SampleSlot, ShadowItem};
+    use crate::queue::ShadowItem;
     use crate::scene::builtin::spheres;
-    use glam::Vec3;
 
     #[test]
     fn blockers_count_only_between_origin_and_light() {
@@ -56,8 +80,7 @@ mod tests {
         push(Vec3::new(-4.0, -1.99, -7.0), Vec3::new(-4.0, -1.5, -7.0));
         // Open sky.
         push(Vec3::new(10.0, -1.99, 0.0), Vec3::new(10.0, 10.0, 0.0));
-        let mut occluded = vec![];
-        intersect_occluded(&world, &q, &mut occluded);
-        assert_eq!(occluded, vec![true, false, false]);
+        intersect_occluded(&world, ShadowTrace::of(&mut q));
+        assert_eq!(q.occluded, vec![true, false, false]);
     }
 }

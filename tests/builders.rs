@@ -1,7 +1,6 @@
 //! The image does not depend on how the kD tree was made or how many threads trace it: midpoint,
 //! SAH and a tree file written and read back give byte-identical Sibenik renders.
 
-
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::mesh::TriangleMesh;
 use wavefront::scene::TreeSource;

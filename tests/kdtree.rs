@@ -1,7 +1,6 @@
 //! kD tree against brute force: Sibenik with seeded random and axis-parallel rays for every
 //! builder and the text round trip, plus small hand-made meshes with known answers.
 
-
 use glam::Vec3;
 use rayon::prelude::*;
 use wavefront::accel::kdtree::{BuildMethod, KdTree, TriHit};

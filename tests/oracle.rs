@@ -1,14 +1,13 @@
 //! End-to-end images: the wavefront renderer against the independent f64 oracle
 //! (`wavefront::oracle`), and both against the assignment's reference figures.
 
-
 use std::sync::OnceLock;
 
-use wavefront_kit::testkit::*;
 use wavefront::Scene;
-use wavefront_kit::oracle::{ImageDiff, compare_rgb8};
 use wavefront::scene::RenderMode;
 use wavefront::scene::builtin::{sibenik, spheres};
+use wavefront_kit::oracle::{ImageDiff, compare_rgb8};
+use wavefront_kit::testkit::*;
 
 /// Scene A with every α = 0: the assignment's "shading with shadows" image.
 fn spheres_without_mirrors() -> Scene {

@@ -1,14 +1,12 @@
 //! Each scene's pipeline holds exactly the stages it needs (SPEC §7), and the shipped scene file
 //! of scene A is the built-in scene.
 
-
-
-use wavefront_kit::testkit::*;
 use wavefront::Pipeline;
 use wavefront::Scene;
 use wavefront::scene::builtin::{sibenik, spheres};
 use wavefront::scene::{RenderMode, file};
-use wavefront::stages::Stage;
+use wavefront::Stage;
+use wavefront_kit::testkit::*;
 
 /// The stages of `pipeline` at each depth.
 fn stages(pipeline: &Pipeline) -> Vec<Vec<Stage>> {
@@ -152,4 +150,31 @@ fn spheres_toml_renders_byte_identical_to_the_built_in() {
     let a = render_png_bytes(&spheres_file());
     let b = render_png_bytes(&spheres());
     assert!(a == b, "scenes/spheres.toml renders differently");
+}
+
+/// The Markdown between `<!-- registry:begin -->` and `<!-- registry:end -->` in `text`, with a
+/// line prefix (`//! ` in Rust docs) removed.
+fn documented_table(text: &str, prefix: &str) -> String {
+    let body: Vec<&str> = text
+        .lines()
+        .map(|l| l.strip_prefix(prefix).unwrap_or(l))
+        .skip_while(|l| !l.contains("registry:begin"))
+        .skip(1)
+        .take_while(|l| !l.contains("registry:end"))
+        .collect();
+    body.join("\n") + "\n"
+}
+
+#[test]
+fn the_column_tables_in_the_docs_are_the_registry() {
+    let registry = wavefront::schedule::stage::columns_table();
+    let root = wavefront_kit::testkit::project_root();
+    for (file, prefix) in [("README.md", ""), ("stages/mod.rs", "//! ")] {
+        let text = std::fs::read_to_string(root.join(file)).unwrap();
+        assert_eq!(
+            documented_table(&text, prefix),
+            registry,
+            "{file}'s stage/column table differs from the stage registry; paste this:\n{registry}"
+        );
+    }
 }

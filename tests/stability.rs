@@ -4,7 +4,6 @@
 //! Every assertion compares against an f64 evaluation on the same f32 inputs or against an exact
 //! geometric fact, with the tolerance stated where it is set.
 
-use wavefront_kit::testkit::Rng;
 use glam::{DVec3, Vec3};
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::geometry::sphere::{intersect_naive, intersect_stable};
@@ -12,8 +11,9 @@ use wavefront::mesh::TriangleMesh;
 use wavefront::queue::{HitColumns, PrimId, RayItem, RayQueue, SampleSlot};
 use wavefront::scene::builtin::spheres;
 use wavefront::scene::{Material, MeshRef, PointLight, RenderMode, Scene, Sphere, TreeSource};
-use wavefront::stages::intersect::intersect_closest;
+use wavefront::stages::intersect::{ClosestOut, ClosestRays, intersect_closest};
 use wavefront::{RenderOptions, World, render};
+use wavefront_kit::testkit::Rng;
 
 /// Independent f64 reference: the textbook quadratic, which is accurate in f64 for these inputs
 /// (its cancellations cost ~1e-16 relative, far below f32 resolution).
@@ -343,7 +343,7 @@ fn no_light_leaks_into_a_closed_thin_walled_box() {
             );
             // The walls facing the light from inside do send shadow rays: the test is live.
             let shadow = stats
-                .get(0, wavefront::stages::Stage::Shadow)
+                .get(0, wavefront::Stage::Shadow)
                 .expect("shadow stage ran");
             assert!(
                 shadow.rays_in > 1000,
@@ -392,8 +392,8 @@ fn poisoned_rays_leave_the_pipeline_without_disturbing_others() {
         slot += 1;
     }
     let (mut a, mut b) = (HitColumns::default(), HitColumns::default());
-    intersect_closest(&world, &clean, &mut a);
-    intersect_closest(&world, &mixed, &mut b);
+    intersect_closest(&world, ClosestRays::of(&clean), ClosestOut::of(&mut a));
+    intersect_closest(&world, ClosestRays::of(&mixed), ClosestOut::of(&mut b));
     for k in 0..good.len() {
         assert_eq!(
             b.prim[2 * k + 1],

@@ -2,12 +2,12 @@
 //! rays through shared vertices and edges, degenerate triangles, subnormal and signed-zero
 //! directions, poisoned rays.
 
-use wavefront_kit::testkit::Rng;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 use wavefront::accel::kdtree::{BuildMethod, KdTree, TriHit};
 use wavefront::geometry::triangle::{intersect_all_closest, intersect_all_occluded};
 use wavefront::mesh::TriangleMesh;
+use wavefront_kit::testkit::Rng;
 
 const PLANE_X: f32 = 148_376.0;
 const CELLS: u32 = 200; // 200 × 200 quads = 80,000 triangles

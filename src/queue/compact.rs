@@ -7,24 +7,25 @@
 
 use rayon::prelude::*;
 
-use super::MIN_CHUNK;
+use super::{MIN_CHUNK, RowIndex};
 
 /// Indices of the rows for which `keep` is true, ascending, into `out` (cleared first).
-pub fn kept_rows(n: usize, keep: impl Fn(usize) -> bool + Sync, out: &mut Vec<u32>) {
+pub fn kept_rows(n: usize, keep: impl Fn(usize) -> bool + Sync, out: &mut Vec<RowIndex>) {
     out.clear();
     out.par_extend(
         (0..n as u32)
             .into_par_iter()
             .with_min_len(MIN_CHUNK)
-            .filter(|&i| keep(i as usize)),
+            .filter(|&i| keep(i as usize))
+            .map(RowIndex),
     );
 }
 
 /// `out[k] = column[rows[k]]` for every k, in parallel (`out` is overwritten).
-pub fn gather<T: Copy + Send + Sync>(column: &[T], rows: &[u32], out: &mut Vec<T>) {
+pub fn gather<T: Copy + Send + Sync>(column: &[T], rows: &[RowIndex], out: &mut Vec<T>) {
     rows.par_iter()
         .with_min_len(MIN_CHUNK)
-        .map(|&i| column[i as usize])
+        .map(|&i| column[i.get()])
         .collect_into_vec(out);
 }
 
@@ -36,7 +37,10 @@ mod tests {
     fn kept_rows_preserve_order_on_any_pool() {
         let n = 100_000;
         let keep = |i: usize| (i * 7919) % 13 < 5;
-        let expected: Vec<u32> = (0..n as u32).filter(|&i| keep(i as usize)).collect();
+        let expected: Vec<RowIndex> = (0..n as u32)
+            .filter(|&i| keep(i as usize))
+            .map(RowIndex)
+            .collect();
         for threads in [1, 2, 4] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
@@ -52,7 +56,7 @@ mod tests {
     fn gather_copies_kept_rows() {
         let col: Vec<u32> = (0..10).map(|i| i * 10).collect();
         let mut out = vec![99; 3];
-        gather(&col, &[1, 4, 9], &mut out);
+        gather(&col, &[RowIndex(1), RowIndex(4), RowIndex(9)], &mut out);
         assert_eq!(out, vec![10, 40, 90]);
         gather(&col, &[], &mut out);
         assert!(out.is_empty());

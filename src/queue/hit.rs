@@ -30,10 +30,22 @@ pub struct HitColumns {
     pub prim: Vec<PrimId>,
 }
 
+impl HitColumns {
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.prim.len()
+    }
+
+    /// True when there are no rows.
+    pub fn is_empty(&self) -> bool {
+        self.prim.is_empty()
+    }
+}
+
 /// The rays that hit something, with their hits; compacted in slot order.
 ///
-/// Intersect fills the ray and hit columns; shade fills `point`, `normal` and `material`, which
-/// reflect reads.
+/// Intersect fills the ray and hit columns; shade fills `point`, `normal`, `material`, `spawn`
+/// and `emitted`; reflect reads `spawn`, `normal`, `material` with the ray columns.
 #[derive(Clone, Debug, Default)]
 pub struct HitQueue {
     /// Ray origins.
@@ -56,6 +68,8 @@ pub struct HitQueue {
     pub material: Vec<u32>,
     /// Origins for rays leaving each hit, offset off the surface (written by shade).
     pub spawn: Vec<Vec3>,
+    /// Radiance each hit adds to its sample at once (written by shade).
+    pub emitted: Vec<Vec3>,
 }
 
 impl HitQueue {
@@ -81,5 +95,6 @@ impl HitQueue {
         self.normal.clear();
         self.material.clear();
         self.spawn.clear();
+        self.emitted.clear();
     }
 }

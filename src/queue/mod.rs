@@ -3,17 +3,23 @@
 //! | queue | rows are | columns |
 //! |---|---|---|
 //! | [`RayQueue`] | rays to trace at one depth | `origin`, `direction`, `t_max`, `weight`, `slot` |
-//! | [`HitQueue`] | rays that hit something | the ray columns, `t`, `prim`; then `point`, `normal`, `material`, `spawn` written by shade |
-//! | [`ShadowQueue`] | shadow rays toward one light | `origin`, `direction`, `t_max`, `radiance`, `slot` |
+//! | [`HitColumns`] | one closest-hit answer per ray of a `RayQueue` | `t`, `prim` |
+//! | [`HitQueue`] | rays that hit something | `origin`, `direction`, `weight`, `slot`, `t`, `prim` (compacted by intersect); `point`, `normal`, `material`, `spawn`, `emitted` (written by shade) |
+//! | [`ShadowQueue`] | shadow rays toward the lights | `origin`, `direction`, `t_max`, `radiance`, `slot` (written by shade); `occluded` (written by shadow) |
+//!
+//! Which stage reads and writes which column is declared once, by the kernels' column sets
+//! ([`columns`]), and collected by the stage registry ([`crate::schedule::stage`]).
 //!
 //! Every queue keeps its rows in ascending [`SampleSlot`] order: generation emits slots in order and
 //! [`compact`] preserves order, which is what makes the film's accumulation deterministic.
 
+pub mod columns;
 pub mod compact;
 pub mod hit;
 pub mod ray;
 pub mod shadow;
 
+pub use columns::{Access, Column, ColumnAccess};
 pub use hit::{HitColumns, HitQueue, PrimId};
 pub use ray::{RayItem, RayQueue};
 pub use shadow::{ShadowItem, ShadowQueue};
@@ -31,6 +37,19 @@ pub struct SampleSlot(pub u32);
 #[repr(transparent)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Pod, Zeroable)]
 pub struct PixelIndex(pub u32);
+
+/// Index of a row of a queue (not a sample, not a pixel): what compaction keeps.
+#[repr(transparent)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash, Pod, Zeroable)]
+pub struct RowIndex(pub u32);
+
+impl RowIndex {
+    /// The row as a slice index.
+    #[inline]
+    pub fn get(self) -> usize {
+        self.0 as usize
+    }
+}
 
 /// Minimum rows per rayon task in kernels: small enough to balance, large enough to amortise.
 pub const MIN_CHUNK: usize = 1024;

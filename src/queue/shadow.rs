@@ -34,6 +34,8 @@ pub struct ShadowQueue {
     pub radiance: Vec<Vec3>,
     /// Sample slots, non-decreasing.
     pub slot: Vec<SampleSlot>,
+    /// Whether something blocks the ray (written by the shadow stage).
+    pub occluded: Vec<bool>,
 }
 
 impl ShadowQueue {
@@ -54,6 +56,7 @@ impl ShadowQueue {
         self.t_max.clear();
         self.radiance.clear();
         self.slot.clear();
+        self.occluded.clear();
     }
 
     /// Appends one shadow ray.

@@ -2,6 +2,8 @@
 
 use glam::Vec3;
 
+use crate::queue::PixelIndex;
+
 /// A pinhole camera looking along `-w`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
@@ -35,6 +37,24 @@ impl Camera {
         let us = self.l + (self.r - self.l) * x / nx as f32;
         let vs = self.t - (self.t - self.b) * y / ny as f32;
         us * self.u + vs * self.v - self.d * self.w
+    }
+
+    /// Unit direction of the ray through `offset` (in `[0, 1)²`, from the pixel's top-left
+    /// corner) inside pixel `pixel` of a `nx × ny` image. Every camera ray the project traces —
+    /// the generate stage's, the benchmarks' and the peers' — comes from here.
+    #[inline]
+    pub fn ray_direction(&self, pixel: PixelIndex, offset: (f32, f32), nx: u32, ny: u32) -> Vec3 {
+        let (i, j) = (pixel.0 % nx, pixel.0 / nx);
+        self.direction(i as f32 + offset.0, j as f32 + offset.1, nx, ny)
+            .normalize()
+    }
+
+    /// The unit directions of the rays through every pixel centre of a `nx × ny` image, row-major
+    /// from the top-left (what a 1-sample render traces first).
+    pub fn pixel_centre_directions(&self, nx: u32, ny: u32) -> Vec<Vec3> {
+        (0..nx * ny)
+            .map(|p| self.ray_direction(PixelIndex(p), (0.5, 0.5), nx, ny))
+            .collect()
     }
 }
 

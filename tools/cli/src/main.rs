@@ -229,11 +229,12 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let pool = builder.build().context("cannot start the thread pool")?;
     let options = RenderOptions {
         wave_samples: args.wave_samples.max(1),
+        ..RenderOptions::default()
     };
     let start = Instant::now();
     let (film, stats, world_seconds) = pool.install(|| -> Result<_> {
-        let world =
-            World::load(&scene).with_context(|| format!("cannot load scene {}", scene.name))?;
+        let (world, setup) = World::load_timed(&scene)
+            .with_context(|| format!("cannot load scene {}", scene.name))?;
         let world_seconds = start.elapsed().as_secs_f64();
         let bar = Progress::new();
         let (film, stats) = render(&scene, &world, options, |done, total| {
@@ -241,14 +242,14 @@ fn run_render(args: RenderArgs) -> Result<()> {
         });
         bar.finish();
         if args.stats
-            && let Some(t) = &world.triangles
+            && let Some(t) = world.triangles()
         {
             println!(
                 "mesh: {} triangles, loaded in {:.1} ms; tree ({:?}) in {:.1} ms",
-                t.mesh.len(),
-                t.load_seconds * 1e3,
-                t.source,
-                t.tree_seconds * 1e3
+                t.mesh().len(),
+                setup.load_seconds * 1e3,
+                t.source(),
+                setup.tree_seconds * 1e3
             );
         }
         Ok((film, stats, world_seconds))

@@ -271,7 +271,14 @@ fn the_cli_rejects_mutated_scenes_cleanly() {
     let mut rejected = 0;
     // A fixed, seeded selection of mutations, each through the real binary.
     for k in 0..40usize {
-        let text = mutate_from(SCENE_TOKENS, SPHERES, (k % 3) as u8, k * 7919, k * 31, k * 13);
+        let text = mutate_from(
+            SCENE_TOKENS,
+            SPHERES,
+            (k % 3) as u8,
+            k * 7919,
+            k * 31,
+            k * 13,
+        );
         let scene = dir.join(format!("s{k}.toml"));
         std::fs::write(&scene, &text).unwrap();
         let out = dir.join(format!("o{k}.png"));
@@ -312,4 +319,3 @@ fn the_cli_rejects_mutated_scenes_cleanly() {
         .collect();
     assert!(leftovers.is_empty(), "partial files left: {leftovers:?}");
 }
-

@@ -1,16 +1,17 @@
-//! Stage benchmarks (`wavefront bench`, `benches/stages.rs`): each kernel timed alone on a
-//! snapshot of its input queue taken from a real render.
+//! Stage benchmarks (`wavefront bench`, `benches/stages.rs`): each stage timed alone on a
+//! snapshot of its input queues taken from a real render.
 //!
-//! Reads: a [`Scene`] and its [`World`]. Writes: a [`Snapshot`] (copies of the first wave's
-//! queues, depth by depth: `RayQueue` for `intersect`, `HitQueue` for `shade` and `reflect`,
-//! `ShadowQueue` for `shadow`) and a [`Report`] of [`Record`]s (stage, depth, rays, seconds).
+//! Reads: a [`Scene`] and its [`World`]. Writes: a [`Snapshot`] (copies of one wave's queues, depth
+//! by depth: `RayQueue` for `intersect`, `HitQueue` for `shade` and `reflect`, `ShadowQueue` for
+//! `shadow`) and a [`Report`] of [`Record`]s (stage, depth, rays, seconds).
 //!
-//! [`Snapshot::capture`] runs the stages by hand for the first wave exactly as
-//! [`wavefront::schedule::render`] orders them — generate, then per depth intersect → shade → shadow →
-//! reflect — keeping a copy of each stage's input. [`StageBench::run`] then runs one kernel on its
-//! snapshot; the CLI takes the best of R runs after one warm-up, criterion does its own sampling.
-//! With the `embree` feature, [`run`] also traces the same intersect and shadow ray arrays with the
-//! Embree peer ([`crate::peer::embree`]) and reports project/Embree throughput ratios.
+//! [`Snapshot::capture`] renders the wave through the schedule itself
+//! ([`wavefront::render_observed`]) with an observer that copies each stage's input as the
+//! schedule hands it over; [`StageBench::run`] then runs one stage on its snapshot through the
+//! schedule's own dispatch ([`schedule::run_stage`]). The CLI takes the best of R runs after one
+//! warm-up, criterion does its own sampling. With the `embree` feature, [`run`] also traces the
+//! same intersect and shadow ray arrays with the Embree peer ([`crate::peer::embree`]) and
+//! reports project/Embree throughput ratios of the kernels alone.
 
 use std::fmt;
 use std::time::Instant;
@@ -18,19 +19,15 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use wavefront::error::LoadError;
-use wavefront::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
+use wavefront::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, ShadowQueue};
 use wavefront::scene::Scene;
-use wavefront::schedule::{Pipeline, RenderOptions, render};
-use wavefront::stages::Stage;
-use wavefront::stages::generate::{Wave, generate_camera_rays};
-use wavefront::stages::intersect::{compact_hits, intersect_closest};
-use wavefront::stages::reflect::spawn_reflection_rays;
-use wavefront::stages::shade::{ShadeScratch, shade_hit_mask, shade_hits};
-use wavefront::stages::shadow::intersect_occluded;
-use wavefront::stats::Stats;
+use wavefront::schedule::{
+    self, Observer, Pipeline, Queues, RenderOptions, Stage, StageRun, WaveQueues, render_observed,
+};
+use wavefront::wave::Wave;
 use wavefront::world::World;
 
-/// The queues one depth of the first wave read, as the schedule produced them.
+/// The queues one depth of the snapshot wave read, as the schedule produced them.
 #[derive(Clone, Debug)]
 pub struct DepthSnapshot {
     /// The bounce counter.
@@ -39,111 +36,87 @@ pub struct DepthSnapshot {
     pub rays: RayQueue,
     /// What `intersect_closest` returned for `rays` (one row per ray), kept to check peers.
     pub closest: HitColumns,
-    /// Input of `shade` and `reflect`: the compacted hits, with the surface columns shade wrote.
-    /// Shade rewrites `point`, `normal` and `material` with the same values, so one copy serves
-    /// both stages.
+    /// Input of `shade` and `reflect`: the compacted hits, with the surface columns shade wrote
+    /// (shade rewrites them with the same values, so one copy serves both stages).
     pub hits: HitQueue,
-    /// Input of `shadow`; `None` when this depth runs no shadow stage.
+    /// Input of `shadow` (with the `occluded` answers the schedule computed); `None` when this
+    /// depth runs no shadow stage.
     pub shadows: Option<ShadowQueue>,
-    /// What `intersect_occluded` returned for `shadows` (empty without shadows).
-    pub occluded: Vec<bool>,
     /// Whether this depth runs `reflect`.
     pub reflect: bool,
 }
 
-/// Every stage input of a scene's first wave.
+/// Every stage input of one wave of a scene.
 #[derive(Clone, Debug)]
 pub struct Snapshot {
     /// The scene's pipeline.
     pub pipeline: Pipeline,
-    /// The first wave (input of `generate`).
+    /// The wave (input of `generate`).
     pub wave: Wave,
-    /// Number of waves a full frame renders (the snapshot covers the middle one only).
+    /// Number of waves a full frame renders (the snapshot covers one).
     pub waves: u32,
     /// One entry per depth that had rays, in depth order.
     pub depths: Vec<DepthSnapshot>,
 }
 
-impl Snapshot {
-    /// Renders one wave of `scene` stage by stage, in schedule order, keeping each stage's input:
-    /// the whole frame when it fits one wave, else the wave holding the image's middle pixel (the
-    /// first rows are often all sky). Runs on the current rayon pool.
-    pub fn capture(scene: &Scene, world: &World) -> Snapshot {
-        let pipeline = Pipeline::for_scene(scene);
-        let image = &scene.image;
-        let spp = image.samples.max(1);
-        let total = image.width * image.height;
-        let options = RenderOptions::default();
-        let pixels_per_wave =
-            ((options.wave_samples / spp as usize).max(1)).min(total as usize) as u32;
-        let middle = (total / 2 / pixels_per_wave) * pixels_per_wave;
-        let wave = Wave {
-            first_pixel: middle,
-            pixels: pixels_per_wave.min(total - middle),
-            samples: spp,
-        };
+/// The observer that copies each stage's input queues out of the schedule.
+#[derive(Default)]
+struct Capture {
+    depths: Vec<DepthSnapshot>,
+}
 
-        let mut rays = RayQueue::default();
-        let mut closest = HitColumns::default();
-        let mut rows = vec![];
-        let mut emitted = vec![];
-        let mut scratch = ShadeScratch::default();
-        let mut depths = vec![];
-
-        // depth 0: generate
-        generate_camera_rays(&scene.camera, image, &wave, &mut rays);
-        for plan in &pipeline.depths {
-            if rays.is_empty() {
-                break;
-            }
-            // intersect
-            let mut hits = HitQueue::default();
-            intersect_closest(world, &rays, &mut closest);
-            compact_hits(&rays, &closest, &mut rows, &mut hits);
-            // shade
-            let mut shadows = ShadowQueue::default();
-            if pipeline.mask {
-                shade_hit_mask(&hits, &mut emitted);
-            } else {
-                shade_hits(
-                    world,
-                    &pipeline.shade,
-                    &mut hits,
-                    &mut emitted,
-                    &mut scratch,
-                    &mut shadows,
-                );
-            }
-            // shadow
-            let mut occluded = vec![];
-            let shadows = plan.stages.contains(&Stage::Shadow).then(|| {
-                intersect_occluded(world, &shadows, &mut occluded);
-                shadows
+impl Observer for Capture {
+    fn before(&mut self, stage: Stage, depth: u32, q: &Queues<'_>) {
+        if stage == Stage::Intersect {
+            self.depths.push(DepthSnapshot {
+                depth,
+                rays: q.rays.clone(),
+                closest: HitColumns::default(),
+                hits: HitQueue::default(),
+                shadows: None,
+                reflect: false,
             });
-            // reflect
-            let reflect = plan.stages.contains(&Stage::Reflect);
-            let mut next = RayQueue::default();
-            if reflect {
-                spawn_reflection_rays(world, &hits, &mut rows, &mut next);
-            }
-            depths.push(DepthSnapshot {
-                depth: plan.depth,
-                rays: std::mem::replace(&mut rays, next),
-                closest: closest.clone(),
-                hits,
-                shadows,
-                occluded,
-                reflect,
-            });
-            if !reflect {
-                break;
-            }
         }
+    }
+
+    fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
+        let Some(d) = self.depths.last_mut() else {
+            return;
+        };
+        match run.stage {
+            Stage::Generate => {}
+            Stage::Intersect => d.closest = q.closest.clone(),
+            Stage::Shade => d.hits = q.hits.clone(),
+            Stage::Shadow => d.shadows = Some(q.shadows.clone()),
+            Stage::Reflect => d.reflect = true,
+        }
+    }
+}
+
+impl Snapshot {
+    /// Renders one wave of `scene` through the schedule, keeping each stage's input: the whole
+    /// frame when it fits one wave, else the wave holding the image's middle pixel (the first rows
+    /// are often all sky). Runs on the current rayon pool.
+    pub fn capture(scene: &Scene, world: &World) -> Snapshot {
+        let image = &scene.image;
+        let total = image.width * image.height;
+        let per_wave = RenderOptions::default().pixels_per_wave(scene);
+        let middle = (total / 2 / per_wave) * per_wave;
+        let options = RenderOptions {
+            pixel_range: Some(middle..(middle + per_wave).min(total)),
+            ..RenderOptions::default()
+        };
+        let wave = schedule::waves(scene, &options)
+            .next()
+            .expect("a non-empty image has a wave");
+        debug_assert_eq!(wave.first_pixel, PixelIndex(middle));
+        let mut capture = Capture::default();
+        render_observed(scene, world, &options, &mut capture);
         Snapshot {
-            pipeline,
+            pipeline: Pipeline::for_scene(scene),
             wave,
-            waves: total.div_ceil(wave.pixels.max(1)),
-            depths,
+            waves: total.div_ceil(per_wave.max(1)),
+            depths: capture.depths,
         }
     }
 
@@ -152,7 +125,7 @@ impl Snapshot {
         self.depths.iter().find(|d| d.depth == depth)
     }
 
-    /// Every (stage, depth) the first wave ran, in schedule order.
+    /// Every (stage, depth) the wave ran, in schedule order.
     pub fn entries(&self) -> Vec<(Stage, u32)> {
         let mut out = vec![(Stage::Generate, 0)];
         for d in &self.depths {
@@ -169,7 +142,7 @@ impl Snapshot {
     }
 
     /// Rays one run of `stage` at `depth` handles: rays written by `generate`, rays read by the
-    /// others (the figure `--stats` divides by). `None` when the first wave did not run it.
+    /// others (the figure `--stats` divides by). `None` when the wave did not run it.
     pub fn rays(&self, stage: Stage, depth: u32) -> Option<usize> {
         if stage == Stage::Generate {
             return (depth == 0).then_some(self.wave.len());
@@ -185,23 +158,7 @@ impl Snapshot {
     }
 }
 
-/// Outputs the timed kernels write into, reused across runs so they allocate only once.
-#[derive(Debug, Default)]
-struct Outputs {
-    rays: RayQueue,
-    closest: HitColumns,
-    rows: Vec<u32>,
-    compacted: HitQueue,
-    /// Shade's working copy of each depth's hits (shade rewrites their surface columns).
-    hits: Vec<HitQueue>,
-    emitted: Vec<glam::Vec3>,
-    shade: ShadeScratch,
-    shadows: ShadowQueue,
-    occluded: Vec<bool>,
-    next: RayQueue,
-}
-
-/// Runs single kernels on a scene's [`Snapshot`]: the shared core of `wavefront bench` and the
+/// Runs single stages on a scene's [`Snapshot`]: the shared core of `wavefront bench` and the
 /// criterion benches.
 #[derive(Debug)]
 pub struct StageBench<'a> {
@@ -209,80 +166,84 @@ pub struct StageBench<'a> {
     world: &'a World,
     /// The stage inputs.
     pub snapshot: Snapshot,
-    out: Outputs,
+    queues: WaveQueues,
 }
 
 impl<'a> StageBench<'a> {
     /// Captures the snapshot of `scene` (on the current rayon pool).
     pub fn new(scene: &'a Scene, world: &'a World) -> StageBench<'a> {
-        let snapshot = Snapshot::capture(scene, world);
-        let out = Outputs {
-            hits: snapshot.depths.iter().map(|d| d.hits.clone()).collect(),
-            ..Outputs::default()
-        };
         StageBench {
             scene,
             world,
-            snapshot,
-            out,
+            snapshot: Snapshot::capture(scene, world),
+            queues: WaveQueues::default(),
         }
     }
 
-    /// Runs `stage`'s kernel once on its snapshot at `depth` and returns the rays it handled (see
-    /// [`Snapshot::rays`]). `intersect` is the closest-hit kernel alone, `shadow` the occlusion
-    /// kernel alone. Panics when the first wave did not run `stage` at `depth`.
-    pub fn run(&mut self, stage: Stage, depth: u32) -> usize {
+    /// Copies the input of `stage` at `depth` into the bench's queues (untimed).
+    pub fn prepare(&mut self, stage: Stage, depth: u32) {
+        let q = &mut self.queues;
+        q.samples.reset(self.snapshot.wave.len());
+        let Some(d) = self.snapshot.depth(depth) else {
+            return;
+        };
+        match stage {
+            Stage::Generate => {}
+            Stage::Intersect => q.rays.clone_from(&d.rays),
+            Stage::Shade | Stage::Reflect => q.hits.clone_from(&d.hits),
+            Stage::Shadow => {
+                if let Some(s) = &d.shadows {
+                    q.shadows.clone_from(s);
+                }
+            }
+        }
+    }
+
+    /// Runs `stage` at `depth` once through the schedule's dispatch on the queues
+    /// [`StageBench::prepare`] filled, and returns the rays it handled (see [`Snapshot::rays`]).
+    /// Panics when the wave did not run `stage` at `depth`.
+    pub fn run_prepared(&mut self, stage: Stage, depth: u32) -> usize {
         let rays = self
             .snapshot
             .rays(stage, depth)
-            .unwrap_or_else(|| panic!("the first wave runs no {stage} at depth {depth}"));
-        let (world, out) = (self.world, &mut self.out);
-        let i = self.snapshot.depths.iter().position(|d| d.depth == depth);
-        let snap = i.map(|i| &self.snapshot.depths[i]);
-        match stage {
-            Stage::Generate => generate_camera_rays(
-                &self.scene.camera,
-                &self.scene.image,
-                &self.snapshot.wave,
-                &mut out.rays,
-            ),
-            Stage::Intersect => intersect_closest(world, &snap.unwrap().rays, &mut out.closest),
-            Stage::Shade if self.snapshot.pipeline.mask => {
-                shade_hit_mask(&snap.unwrap().hits, &mut out.emitted)
-            }
-            Stage::Shade => shade_hits(
-                world,
-                &self.snapshot.pipeline.shade,
-                &mut out.hits[i.unwrap()],
-                &mut out.emitted,
-                &mut out.shade,
-                &mut out.shadows,
-            ),
-            Stage::Shadow => intersect_occluded(
-                world,
-                snap.unwrap().shadows.as_ref().unwrap(),
-                &mut out.occluded,
-            ),
-            Stage::Reflect => {
-                spawn_reflection_rays(world, &snap.unwrap().hits, &mut out.rows, &mut out.next)
-            }
-        }
+            .unwrap_or_else(|| panic!("the snapshot runs no {stage} at depth {depth}"));
+        schedule::run_stage(
+            stage,
+            self.scene,
+            self.world,
+            &self.snapshot.pipeline,
+            &self.snapshot.wave,
+            &mut self.queues,
+        );
         rays
     }
 
-    /// Runs the intersect stage's compaction (`compact_hits`) once on the snapshot at `depth`.
-    pub fn run_compaction(&mut self, depth: u32) -> usize {
-        let d = self
-            .snapshot
-            .depth(depth)
-            .unwrap_or_else(|| panic!("the first wave has no depth {depth}"));
-        compact_hits(
-            &d.rays,
-            &d.closest,
-            &mut self.out.rows,
-            &mut self.out.compacted,
-        );
-        d.rays.len()
+    /// The queues the last run left (its output).
+    pub fn queues(&self) -> &WaveQueues {
+        &self.queues
+    }
+
+    /// [`StageBench::prepare`] then [`StageBench::run_prepared`].
+    pub fn run(&mut self, stage: Stage, depth: u32) -> usize {
+        self.prepare(stage, depth);
+        self.run_prepared(stage, depth)
+    }
+
+    /// Seconds of the fastest of `repeat` runs of `stage` at `depth` (after one warm-up), each on
+    /// a fresh copy of its input; and the rays it handled.
+    pub fn best_of(&mut self, repeat: usize, stage: Stage, depth: u32) -> (f64, usize) {
+        let mut best = f64::INFINITY;
+        let mut rays = 0;
+        for i in 0..=repeat.max(1) {
+            self.prepare(stage, depth);
+            let start = Instant::now();
+            rays = self.run_prepared(stage, depth);
+            let s = start.elapsed().as_secs_f64();
+            if i > 0 {
+                best = best.min(s);
+            }
+        }
+        (best, rays)
     }
 }
 
@@ -333,9 +294,10 @@ pub struct Record {
     pub seconds: f64,
     /// `rays / seconds`, in millions.
     pub mrays_per_s: f64,
-    /// `intersect` only: best time of the compaction that follows the closest-hit kernel.
+    /// Peer rows: Mrays/s of the project's own kernel alone (`intersect_closest` or
+    /// `intersect_occluded`, without compaction or accumulation) on the same rays, same run.
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub compact_seconds: Option<f64>,
+    pub project_mrays_per_s: Option<f64>,
     /// Peer rows: which peer traced the same rays (e.g. `embree-intersect1`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub peer: Option<String>,
@@ -370,7 +332,7 @@ impl Record {
             rays,
             seconds: s,
             mrays_per_s: mrays_per_s(rays, s),
-            compact_seconds: None,
+            project_mrays_per_s: None,
             peer: None,
             ratio: None,
             mismatches: None,
@@ -454,29 +416,41 @@ pub struct Traffic {
     pub machine_gb_per_s: f64,
 }
 
-/// Bytes the schedule moves through queue columns for a render with these statistics.
-///
-/// A model from the column sizes, per row, counting each column read or written once per pass:
-/// generate writes a ray row (44 B); intersect reads origin, direction and `t_max` (28 B), writes
-/// `t` and `prim` (8 B) and re-reads `prim` (4 B) per ray, then gathers 48 B into and out of the hit
-/// queue per hit; shade reads and writes 188 B per hit (surface columns, emitted radiance, the
-/// film add) plus 52 B per shadow candidate and 88 B per kept shadow ray; shadow reads 45 B and
-/// writes 1 B per ray, and read-modify-writes 24 B of film per lit ray; reflect reads 4 B per hit
-/// and 56 B, writes 44 B per spawned ray.
-pub fn queue_traffic_bytes(stats: &Stats, lights: usize) -> u64 {
-    stats
-        .entries
+/// Counts the bytes the schedule moves through queue columns, from the stage registry: each
+/// stage call touches every column its kernels declare ([`Stage::columns`]) once per row of that
+/// column's queue as the stage leaves it (the wave's samples: once per row added, read and
+/// written). An [`Observer`] of the schedule.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct TrafficMeter {
+    /// Bytes counted so far.
+    pub bytes: u64,
+}
+
+impl Observer for TrafficMeter {
+    fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
+        self.bytes += queue_traffic_bytes(run, q);
+    }
+}
+
+/// Bytes one stage call moves through queue columns (see [`TrafficMeter`]).
+pub fn queue_traffic_bytes(run: &StageRun, q: &Queues<'_>) -> u64 {
+    let rows = |queue: &str| -> usize {
+        match queue {
+            "RayQueue" if run.stage == Stage::Reflect => q.next.len(),
+            "RayQueue" => q.rays.len(),
+            "HitColumns" => q.closest.len(),
+            "HitQueue" => q.hits.len(),
+            "ShadowQueue" => q.shadows.len(),
+            // Read-modify-write of one sample per row added.
+            "SampleBuffer" if run.stage == Stage::Shadow => 2 * run.rays_out,
+            "SampleBuffer" => 2 * q.hits.len(),
+            other => unreachable!("queue {other} missing from the traffic model"),
+        }
+    };
+    run.stage
+        .columns()
         .iter()
-        .map(|(&(_, stage), e)| {
-            let (i, o) = (e.rays_in, e.rays_out);
-            match stage {
-                Stage::Generate => RayQueue::ROW_BYTES as u64 * o,
-                Stage::Intersect => 40 * i + 96 * o,
-                Stage::Shade => 188 * i + 52 * i * lights as u64 + 88 * o,
-                Stage::Shadow => 46 * i + 24 * o,
-                Stage::Reflect => 4 * i + 100 * o,
-            }
-        })
+        .map(|c| (c.column.bytes * rows(c.column.queue)) as u64)
         .sum()
 }
 
@@ -538,9 +512,6 @@ impl fmt::Display for Report {
                 r.seconds * 1e3,
                 r.mrays_per_s
             )?;
-            if let Some(c) = r.compact_seconds {
-                write!(f, "   (+ compaction {:.3} ms)", c * 1e3)?;
-            }
             writeln!(f)?;
         }
         if let Some(t) = self.timing("frame") {
@@ -642,7 +613,7 @@ pub fn run(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
 fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
     let threads = rayon::current_num_threads();
     let repeat = config.repeat.max(1);
-    let world = World::load(scene)?;
+    let (world, setup) = World::load_timed(scene)?;
     let mut report = Report {
         scene: scene.name.clone(),
         threads,
@@ -658,25 +629,21 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
         ));
     }
     for (stage, depth) in bench.snapshot.entries() {
-        let mut rays = 0;
-        let s = best_of(repeat, || rays = bench.run(stage, depth));
-        let mut r = Record::new(&scene.name, stage, depth, threads, rays, s);
-        if stage == Stage::Intersect {
-            r.compact_seconds = Some(best_of(repeat, || {
-                bench.run_compaction(depth);
-            }));
-        }
-        report.stages.push(r);
+        let (s, rays) = bench.best_of(repeat, stage, depth);
+        report
+            .stages
+            .push(Record::new(&scene.name, stage, depth, threads, rays, s));
     }
 
-    let mut stats = Stats::default();
+    let mut traffic = TrafficMeter::default();
     let frame = median_of(repeat, || {
-        stats = render(scene, &world, RenderOptions::default(), |_, _| {}).1;
+        traffic = TrafficMeter::default();
+        render_observed(scene, &world, &RenderOptions::default(), &mut traffic);
     });
-    if world.triangles.is_none() {
+    if world.triangles().is_none() {
         let samples =
             scene.image.width as f64 * scene.image.height as f64 * scene.image.samples as f64;
-        let bytes = queue_traffic_bytes(&stats, world.lights.len()) as f64 / samples;
+        let bytes = traffic.bytes as f64 / samples;
         report.traffic = Some(Traffic {
             samples_per_s: samples / frame,
             bytes_per_sample: bytes,
@@ -687,13 +654,13 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     report
         .timings
         .push(timing(scene, "frame", threads, frame, repeat));
-    if let Some(t) = &world.triangles {
+    if world.triangles().is_some() {
         report
             .timings
-            .push(timing(scene, "load_obj", threads, t.load_seconds, 1));
+            .push(timing(scene, "load_obj", threads, setup.load_seconds, 1));
         report
             .timings
-            .push(timing(scene, "tree", threads, t.tree_seconds, 1));
+            .push(timing(scene, "tree", threads, setup.tree_seconds, 1));
         peers(scene, &world, &bench.snapshot, repeat, &mut report)?;
     }
     Ok(report)
@@ -732,14 +699,17 @@ fn peers(
     repeat: usize,
     report: &mut Report,
 ) -> Result<(), BenchError> {
-    use wavefront::accel::kdtree::{BuildMethod, KdTree};
     use crate::peer::embree::{EmbreeScene, TraceOpts};
     use bytemuck::cast_slice;
+    use wavefront::accel::kdtree::{BuildMethod, KdTree};
 
-    let Some(tris) = &world.triangles else {
+    use wavefront::stages::intersect::{ClosestOut, ClosestRays, intersect_closest};
+    use wavefront::stages::shadow::{ShadowTrace, intersect_occluded};
+
+    let Some(tris) = world.triangles() else {
         return Ok(());
     };
-    if !world.spheres.is_empty() || !world.planes.is_empty() {
+    if !world.spheres().is_empty() || !world.planes().is_empty() {
         report.notes.push(
             "Embree peer skipped: the scene has spheres or planes, the peer only triangles".into(),
         );
@@ -747,7 +717,7 @@ fn peers(
     }
     let threads = report.threads;
     let config = format!("threads={threads}");
-    let (v, idx) = (&tris.mesh.vertices, &tris.mesh.indices);
+    let (v, idx) = (&tris.mesh().vertices, &tris.mesh().indices);
     let embree = EmbreeScene::with_config(v, idx, &config).map_err(BenchError::Peer)?;
     let mut build = embree.build_seconds();
     for _ in 1..repeat {
@@ -758,26 +728,44 @@ fn peers(
         .timings
         .push(timing(scene, "embree_build", threads, build, repeat));
     let sah = best_of(repeat, || {
-        std::hint::black_box(KdTree::build(&tris.mesh, BuildMethod::Sah));
+        std::hint::black_box(KdTree::build(tris.mesh(), BuildMethod::Sah));
     });
     report
         .timings
         .push(timing(scene, "build_sah", threads, sah, repeat));
 
     let opts = TraceOpts::parallel();
-    let project = |stage: Stage, depth: u32| {
-        report
-            .stages
-            .iter()
-            .find(|r| r.stage == stage.label() && r.depth == depth)
-            .map(|r| r.mrays_per_s)
-    };
     let mut rows = vec![];
     for d in &snapshot.depths {
+        // The project's kernels alone on the same rays, timed in the same run as the peer.
+        let mut closest = HitColumns::default();
+        let ours_closest = mrays_per_s(
+            d.rays.len(),
+            best_of(repeat, || {
+                intersect_closest(
+                    world,
+                    ClosestRays::of(&d.rays),
+                    ClosestOut::of(&mut closest),
+                )
+            }),
+        );
+        let mut shadows = d.shadows.clone().unwrap_or_default();
+        let ours_occluded = mrays_per_s(
+            shadows.len(),
+            best_of(repeat, || {
+                intersect_occluded(world, ShadowTrace::of(&mut shadows))
+            }),
+        );
         let peer_row = |name: &str, stage: Stage, rays: usize, s: f64| {
             let mut r = Record::new(&scene.name, stage, d.depth, threads, rays, s);
+            let ours = if stage == Stage::Shadow {
+                ours_occluded
+            } else {
+                ours_closest
+            };
             r.peer = Some(name.into());
-            r.ratio = project(stage, d.depth).map(|p| p / r.mrays_per_s);
+            r.project_mrays_per_s = Some(ours);
+            r.ratio = Some(ours / r.mrays_per_s);
             r
         };
         let (o, dir) = (cast_slice(&d.rays.origin), cast_slice(&d.rays.direction));
@@ -809,7 +797,7 @@ fn peers(
                     }
                 });
                 let mut r = peer_row(name, Stage::Shadow, sh.len(), s);
-                let ours = d.occluded.iter().filter(|&&b| b).count();
+                let ours = sh.occluded.iter().filter(|&&b| b).count();
                 let theirs = occ.iter().filter(|&&b| b).count();
                 (r.occluded, r.occluded_project) = (Some(theirs), Some(ours));
                 if ours.abs_diff(theirs) as f64 > 1e-4 * sh.len() as f64 {
@@ -875,6 +863,7 @@ pub fn compare_closest(project: &HitColumns, t: &[f32], prim: &[u32]) -> Closest
 mod tests {
     use super::*;
     use wavefront::queue::PrimId;
+    use wavefront::render;
     use wavefront::scene::builtin::spheres;
 
     fn small_spheres() -> Scene {
@@ -927,15 +916,54 @@ mod tests {
         }
         let d1 = bench.snapshot.depth(1).unwrap().clone();
         bench.run(Stage::Intersect, 1);
-        assert_eq!(bench.out.closest.prim, d1.closest.prim);
+        assert_eq!(bench.queues().closest.prim, d1.closest.prim);
+        assert_eq!(bench.queues().hits.slot, d1.hits.slot);
         bench.run(Stage::Shadow, 1);
-        assert_eq!(bench.out.occluded, d1.occluded);
+        let shadows = d1.shadows.as_ref().unwrap();
+        assert_eq!(bench.queues().shadows.occluded, shadows.occluded);
         bench.run(Stage::Reflect, 0);
-        assert_eq!(bench.out.next.direction, d1.rays.direction);
+        assert_eq!(bench.queues().next.direction, d1.rays.direction);
         bench.run(Stage::Shade, 1);
-        assert_eq!(bench.out.hits[1].normal, d1.hits.normal);
-        assert_eq!(bench.run_compaction(1), d1.rays.len());
-        assert_eq!(bench.out.compacted.slot, d1.hits.slot);
+        assert_eq!(bench.queues().hits.normal, d1.hits.normal);
+        assert_eq!(bench.queues().shadows.radiance, shadows.radiance);
+    }
+
+    #[test]
+    fn traffic_counts_every_registered_column_once_per_row() {
+        let scene = small_spheres();
+        let world = World::load(&scene).unwrap();
+        let mut meter = TrafficMeter::default();
+        let mut stats = wavefront::Stats::default();
+        render_observed(
+            &scene,
+            &world,
+            &RenderOptions::default(),
+            (&mut meter, &mut stats),
+        );
+        let rays = stats.get(0, Stage::Generate).unwrap().rays_out;
+        // generate writes origin, direction, weight (12 B), t_max and slot (4 B) per ray.
+        let generate = 44 * rays;
+        assert!(meter.bytes > 4 * generate, "{} vs {generate}", meter.bytes);
+        let mut only = TrafficMeter::default();
+        let mut generate_only = GenerateOnly(&mut only);
+        render_observed(
+            &scene,
+            &world,
+            &RenderOptions::default(),
+            &mut generate_only,
+        );
+        assert_eq!(only.bytes, generate);
+    }
+
+    /// Meters the generate stage alone.
+    struct GenerateOnly<'a>(&'a mut TrafficMeter);
+
+    impl Observer for GenerateOnly<'_> {
+        fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
+            if run.stage == Stage::Generate {
+                self.0.after(run, q);
+            }
+        }
     }
 
     #[test]

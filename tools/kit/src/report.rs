@@ -19,8 +19,8 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use glam::Vec3;
 
-use wavefront::mesh::TriangleMesh;
 use crate::oracle::{ImageDiff, compare_rgb8, render_oracle};
+use wavefront::mesh::TriangleMesh;
 use wavefront::scene::builtin::{sibenik, sibenik_mesh_path};
 use wavefront::scene::{OffsetMethod, Robustness, Scene, SphereTest, TreeSource, TriangleTest};
 use wavefront::{RenderOptions, World, render};
@@ -153,7 +153,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
     let mut report = Report::default();
     let base = &settings.scene;
     let world = World::load(base).context("cannot load the report scene")?;
-    let mesh = world.triangles.as_ref().map(|t| &t.mesh);
+    let mesh = world.triangles().map(|t| t.mesh());
     let label = base.name.clone();
 
     // Convergence: the sweep against a many-sample f64 reference.
@@ -203,18 +203,18 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
         let mut s = scene.clone();
         s.image.samples = 1;
         let mut world = World::load(&s)?;
-        let reference = oracle_rgb8(&s, world.triangles.as_ref().map(|t| &t.mesh));
+        let reference = oracle_rgb8(&s, world.triangles().map(|t| t.mesh()));
         for (variant, robustness) in variants() {
             let relevant = match robustness {
                 r if r == Robustness::default() => true,
                 r if r.sphere != SphereTest::Stable => !s.spheres.is_empty(),
-                r if r.triangle != TriangleTest::Watertight => world.triangles.is_some(),
+                r if r.triangle != TriangleTest::Watertight => world.triangles().is_some(),
                 _ => true,
             };
             if !relevant {
                 continue;
             }
-            world.robustness = robustness;
+            world = world.with_robustness(robustness);
             let (image, seconds) = timed_render(&s, &world, settings.runs);
             let group = if robustness == Robustness::default() {
                 "precision"
@@ -230,20 +230,20 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
             });
         }
         if name == "sibenik-shadows" {
-            world.robustness = Robustness::default();
+            world = world.with_robustness(Robustness::default());
             sibenik_world = Some((s, world, reference));
         }
     }
 
     // kD builders on Sibenik: identical images, different times.
     if let Some((scene, world, reference)) = sibenik_world
-        && let Some(tris) = &world.triangles
+        && let Some(tris) = world.triangles()
     {
         log("kd builders on sibenik-shadows");
         let tree_file =
             std::env::temp_dir().join(format!("wavefront-report-{}.kd", std::process::id()));
         let mut text = Vec::new();
-        tris.tree.write_text(&mut text)?; // the world's tree is the SAH one
+        tris.tree().write_text(&mut text)?; // the world's tree is the SAH one
         write_file(&tree_file, &text)?;
         for (config, source) in [
             ("midpoint", TreeSource::Midpoint),

@@ -238,4 +238,3 @@ pub fn mutate_from(
     }
     t
 }
-

@@ -1,0 +1,381 @@
+//! The schedule: the one place that orders the stages. Reading [`render`]'s loop top to bottom is
+//! reading the renderer.
+//!
+//! ```text
+//! for each wave of ≤ wave_samples samples (whole pixels):
+//!   depth 0: generate ─► rays[0]
+//!   depth k: intersect(rays[k]) ─► hits ─► shade ─► emitted ─────────────► samples
+//!                                           │    └► shadow rays ─► shadow ─► samples (unoccluded)
+//!                                           └► reflect (k < max_depth) ─► rays[k+1]
+//!   resolve: samples ─► pixels (box filter)
+//! ```
+//!
+//! [`Pipeline::for_scene`] leaves out what a scene does not need: no reflect stage without a
+//! reflective material or with `max_depth = 0`, no shadow stage without shadows or lights, no
+//! specular evaluation without `ks > 0`, no kD tree without a mesh, no shading at all for a hit mask.
+
+pub mod observer;
+pub mod stage;
+
+use std::fmt;
+use std::ops::Range;
+use std::time::Instant;
+
+use crate::film::{Film, SampleBuffer};
+use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, RowIndex, ShadowQueue};
+use crate::scene::{RenderMode, Scene};
+use crate::stages::generate::{CameraRays, generate_camera_rays};
+use crate::stages::intersect::{
+    ClosestOut, ClosestRays, CompactHits, CompactOut, CompactRays, compact_hits, intersect_closest,
+};
+use crate::stages::reflect::{NextRays, ReflectHits, spawn_reflection_rays};
+use crate::stages::shade::{
+    EmittedHits, MaskHits, Samples, ShadeHits, ShadeScratch, ShadeSettings, ShadowRays,
+    add_emitted, shade_hit_mask, shade_hits,
+};
+use crate::stages::shadow::{LitRays, ShadowTrace, add_unoccluded, intersect_occluded};
+use crate::stats::Stats;
+use crate::wave::Wave;
+use crate::world::World;
+pub use observer::{Observer, Progress, Queues, StageRun};
+pub use stage::Stage;
+
+/// Default cap on samples per wave: bounds memory whatever the samples per pixel.
+pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 20;
+
+/// The stages one depth runs, in order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DepthPlan {
+    /// The bounce counter.
+    pub depth: u32,
+    /// Stages, in order.
+    pub stages: Vec<Stage>,
+}
+
+/// A scene's pipeline: stages per depth, plus what the shade stage evaluates.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Pipeline {
+    /// One entry per depth that can have rays.
+    pub depths: Vec<DepthPlan>,
+    /// Shade settings (which terms are evaluated).
+    pub shade: ShadeSettings,
+    /// Hit mask instead of shading.
+    pub mask: bool,
+    /// What the intersect and shadow stages test against.
+    pub geometry: String,
+}
+
+impl Pipeline {
+    /// The pipeline `scene` needs.
+    pub fn for_scene(scene: &Scene) -> Pipeline {
+        let shade = ShadeSettings::for_scene(scene);
+        let mask = scene.render.mode == RenderMode::HitMask;
+        let reflect = scene.needs_reflections();
+        let last = if reflect { scene.render.max_depth } else { 0 };
+        let depths = (0..=last)
+            .map(|depth| {
+                let mut stages = vec![];
+                if depth == 0 {
+                    stages.push(Stage::Generate);
+                }
+                stages.push(Stage::Intersect);
+                stages.push(Stage::Shade);
+                if shade.shadows {
+                    stages.push(Stage::Shadow);
+                }
+                if depth < last {
+                    stages.push(Stage::Reflect);
+                }
+                DepthPlan { depth, stages }
+            })
+            .collect();
+        Pipeline {
+            depths,
+            shade,
+            mask,
+            geometry: describe_geometry(scene),
+        }
+    }
+
+    /// True when some depth runs `stage`.
+    pub fn runs(&self, stage: Stage) -> bool {
+        self.depths.iter().any(|d| d.stages.contains(&stage))
+    }
+}
+
+fn describe_geometry(scene: &Scene) -> String {
+    let mut parts = vec![];
+    if !scene.spheres.is_empty() {
+        parts.push(format!("{} spheres", scene.spheres.len()));
+    }
+    if !scene.planes.is_empty() {
+        parts.push(format!("{} planes", scene.planes.len()));
+    }
+    let analytic = if parts.is_empty() {
+        String::new()
+    } else {
+        format!("{} (brute force)", parts.join(", "))
+    };
+    let mesh = match scene.meshes.len() {
+        0 => "no mesh, no kD tree".to_string(),
+        n => {
+            let tree = match &scene.meshes[0].kdtree {
+                crate::scene::TreeSource::Sah => "SAH kD tree".to_string(),
+                crate::scene::TreeSource::Midpoint => "midpoint kD tree".to_string(),
+                crate::scene::TreeSource::File(p) => format!("kD tree from {}", p.display()),
+            };
+            format!("{n} mesh(es) through a {tree}")
+        }
+    };
+    if analytic.is_empty() {
+        mesh
+    } else {
+        format!("{analytic}; {mesh}")
+    }
+}
+
+impl fmt::Display for Pipeline {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(f, "geometry: {}", self.geometry)?;
+        let terms = if self.mask {
+            "hit mask (no shading)".to_string()
+        } else {
+            let mut t = vec!["ambient", "diffuse"];
+            if self.shade.specular {
+                t.push("specular");
+            }
+            format!(
+                "{}; direct light {}",
+                t.join(" + "),
+                if self.shade.shadows {
+                    "through shadow rays"
+                } else {
+                    "unshadowed"
+                }
+            )
+        };
+        writeln!(f, "shade: {terms}")?;
+        for d in &self.depths {
+            let stages: Vec<_> = d
+                .stages
+                .iter()
+                .map(|s| match (s, self.mask) {
+                    (Stage::Shade, true) => "shade[mask]",
+                    (Stage::Intersect, _) => "intersect[closest]",
+                    (Stage::Shadow, _) => "shadow[occluded]",
+                    (s, _) => s.label(),
+                })
+                .collect();
+            writeln!(f, "depth {}: {}", d.depth, stages.join(" -> "))?;
+        }
+        Ok(())
+    }
+}
+
+/// Options that change how, not what, the schedule renders.
+#[derive(Clone, Debug)]
+pub struct RenderOptions {
+    /// Upper bound on samples per wave (rounded to whole pixels, at least one pixel).
+    pub wave_samples: usize,
+    /// Row-major pixel indices to render (`None`: the whole image). Waves start at the first
+    /// pixel of the whole image and step by whole waves, so the waves (and the samples) of a range
+    /// are exactly those of the full render; pixels outside it stay black in the film.
+    pub pixel_range: Option<Range<u32>>,
+}
+
+impl Default for RenderOptions {
+    fn default() -> Self {
+        RenderOptions {
+            wave_samples: DEFAULT_WAVE_SAMPLES,
+            pixel_range: None,
+        }
+    }
+}
+
+impl RenderOptions {
+    /// Pixels per wave for `scene`: `wave_samples / spp`, at least one, at most the image.
+    pub fn pixels_per_wave(&self, scene: &Scene) -> u32 {
+        let image = &scene.image;
+        let spp = image.samples.max(1) as usize;
+        let total = image.width as usize * image.height as usize;
+        (self.wave_samples / spp).clamp(1, total.max(1)) as u32
+    }
+}
+
+/// The waves of a render, in order: whole-image waves clipped to `options.pixel_range`.
+pub fn waves(scene: &Scene, options: &RenderOptions) -> impl Iterator<Item = Wave> + use<> {
+    let image = &scene.image;
+    let total = image.width * image.height;
+    let per_wave = options.pixels_per_wave(scene);
+    let range = options.pixel_range.clone().unwrap_or(0..total);
+    let (start, end) = (range.start.min(total), range.end.min(total));
+    let samples = image.samples.max(1);
+    let first = (start / per_wave) * per_wave;
+    (first..end).step_by(per_wave as usize).map(move |p| {
+        let lo = p.max(start);
+        let hi = (p + per_wave).min(end);
+        Wave {
+            first_pixel: PixelIndex(lo),
+            pixels: hi - lo,
+            samples,
+        }
+    })
+}
+
+/// The queues of one wave, reused across depths and waves so kernels allocate only while growing.
+#[derive(Debug, Default)]
+pub struct WaveQueues {
+    /// This depth's rays.
+    pub rays: RayQueue,
+    /// The next depth's rays (written by `reflect`).
+    pub next: RayQueue,
+    /// One closest-hit answer per ray.
+    pub closest: HitColumns,
+    /// The rays that hit, with their surfaces.
+    pub hits: HitQueue,
+    /// Shadow rays.
+    pub shadows: ShadowQueue,
+    /// The wave's samples.
+    pub samples: SampleBuffer,
+    rows: Vec<RowIndex>,
+    shade: ShadeScratch,
+}
+
+impl WaveQueues {
+    /// Read-only views for observers.
+    pub fn queues<'a>(&'a self, wave: &'a Wave) -> Queues<'a> {
+        Queues {
+            wave,
+            rays: &self.rays,
+            closest: &self.closest,
+            hits: &self.hits,
+            shadows: &self.shadows,
+            next: &self.next,
+            samples: &self.samples,
+        }
+    }
+}
+
+/// Renders `scene` (whose geometry is `world`) and returns the film and per-stage statistics.
+/// `progress` is called after each wave with (pixels done, pixels total).
+pub fn render(
+    scene: &Scene,
+    world: &World,
+    options: RenderOptions,
+    progress: impl FnMut(u64, u64),
+) -> (Film, Stats) {
+    let mut stats = Stats::default();
+    let film = render_observed(scene, world, &options, (&mut stats, Progress(progress)));
+    (film, stats)
+}
+
+/// Renders `scene`, showing every stage call and wave to `observer`. This is the renderer: for
+/// each wave, for each depth of the [`Pipeline`], each of that depth's stages in order.
+pub fn render_observed(
+    scene: &Scene,
+    world: &World,
+    options: &RenderOptions,
+    mut observer: impl Observer,
+) -> Film {
+    let pipeline = Pipeline::for_scene(scene);
+    let image = &scene.image;
+    let total = u64::from(image.width) * u64::from(image.height);
+    let mut film = Film::new(image.width, image.height);
+    let mut ws = WaveQueues::default();
+    let mut done = 0;
+
+    for wave in waves(scene, options) {
+        ws.samples.reset(wave.len());
+        'depths: for plan in &pipeline.depths {
+            for &stage in &plan.stages {
+                if stage == Stage::Intersect && ws.rays.is_empty() {
+                    break 'depths; // every ray of the previous depth missed or stopped
+                }
+                observer.before(stage, plan.depth, &ws.queues(&wave));
+                let start = Instant::now();
+                let (rays_in, rays_out) = run_stage(stage, scene, world, &pipeline, &wave, &mut ws);
+                let run = StageRun {
+                    stage,
+                    depth: plan.depth,
+                    rays_in,
+                    rays_out,
+                    elapsed: start.elapsed(),
+                };
+                observer.after(&run, &ws.queues(&wave));
+            }
+            // The next depth traces the reflections this one spawned.
+            std::mem::swap(&mut ws.rays, &mut ws.next);
+            ws.next.clear();
+        }
+        film.resolve_wave(&ws.samples, &wave);
+        done += u64::from(wave.pixels);
+        observer.wave_done(done, total);
+    }
+    film
+}
+
+/// Runs one stage's kernels on a wave's queues; returns (rays in, rays out). The one dispatch
+/// from stage to kernels: the render loop above and the stage benchmarks both call it.
+pub fn run_stage(
+    stage: Stage,
+    scene: &Scene,
+    world: &World,
+    pipeline: &Pipeline,
+    wave: &Wave,
+    ws: &mut WaveQueues,
+) -> (usize, usize) {
+    match stage {
+        Stage::Generate => {
+            generate_camera_rays(
+                &scene.camera,
+                &scene.image,
+                wave,
+                CameraRays::of(&mut ws.rays),
+            );
+            (0, ws.rays.len())
+        }
+        Stage::Intersect => {
+            intersect_closest(
+                world,
+                ClosestRays::of(&ws.rays),
+                ClosestOut::of(&mut ws.closest),
+            );
+            compact_hits(
+                CompactRays::of(&ws.rays),
+                CompactHits::of(&ws.closest),
+                &mut ws.rows,
+                CompactOut::of(&mut ws.hits),
+            );
+            (ws.rays.len(), ws.hits.len())
+        }
+        Stage::Shade => {
+            if pipeline.mask {
+                shade_hit_mask(MaskHits::of(&mut ws.hits));
+            } else {
+                shade_hits(
+                    world,
+                    &pipeline.shade,
+                    ShadeHits::of(&mut ws.hits),
+                    &mut ws.shade,
+                    ShadowRays::of(&mut ws.shadows),
+                );
+            }
+            add_emitted(EmittedHits::of(&ws.hits), Samples::of(&mut ws.samples));
+            (ws.hits.len(), ws.shadows.len())
+        }
+        Stage::Shadow => {
+            intersect_occluded(world, ShadowTrace::of(&mut ws.shadows));
+            let lit = add_unoccluded(LitRays::of(&ws.shadows), Samples::of(&mut ws.samples));
+            (ws.shadows.len(), lit)
+        }
+        Stage::Reflect => {
+            spawn_reflection_rays(
+                world,
+                ReflectHits::of(&ws.hits),
+                &mut ws.rows,
+                NextRays::of(&mut ws.next),
+            );
+            (ws.hits.len(), ws.next.len())
+        }
+    }
+}

@@ -1,0 +1,95 @@
+//! Observers: what the schedule shows the outside after each stage call and each wave, so
+//! statistics, progress bars and benchmark snapshots watch the one schedule instead of copying
+//! its loop.
+
+use std::time::Duration;
+
+use super::stage::Stage;
+use crate::film::SampleBuffer;
+use crate::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
+use crate::wave::Wave;
+
+/// The queues of the current wave, as a stage finds them (`before`) or leaves them (`after`).
+#[derive(Clone, Copy, Debug)]
+pub struct Queues<'a> {
+    /// The wave being rendered.
+    pub wave: &'a Wave,
+    /// This depth's rays (input of `intersect`).
+    pub rays: &'a RayQueue,
+    /// One closest-hit answer per ray (written by `intersect`).
+    pub closest: &'a HitColumns,
+    /// The rays that hit (written by `intersect`, surface columns by `shade`).
+    pub hits: &'a HitQueue,
+    /// Shadow rays (written by `shade`, `occluded` by `shadow`).
+    pub shadows: &'a ShadowQueue,
+    /// The next depth's rays (written by `reflect`; they become `rays` after it).
+    pub next: &'a RayQueue,
+    /// The wave's samples.
+    pub samples: &'a SampleBuffer,
+}
+
+/// One stage call: what ran, on how many rays, for how long.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StageRun {
+    /// The stage.
+    pub stage: Stage,
+    /// The bounce counter.
+    pub depth: u32,
+    /// Rays read (0 for `generate`).
+    pub rays_in: usize,
+    /// Rays produced: camera rays, hits, shadow rays, unoccluded shadow rays, reflection rays.
+    pub rays_out: usize,
+    /// Wall time of the call.
+    pub elapsed: Duration,
+}
+
+/// Watches a render. Every method has an empty default.
+pub trait Observer {
+    /// Called before each stage call.
+    fn before(&mut self, _stage: Stage, _depth: u32, _queues: &Queues<'_>) {}
+    /// Called after each stage call.
+    fn after(&mut self, _run: &StageRun, _queues: &Queues<'_>) {}
+    /// Called after each wave is resolved into the film, with pixels done and total.
+    fn wave_done(&mut self, _done: u64, _total: u64) {}
+}
+
+/// Observes nothing.
+impl Observer for () {}
+
+/// Both observers, in order.
+impl<A: Observer, B: Observer> Observer for (A, B) {
+    fn before(&mut self, stage: Stage, depth: u32, queues: &Queues<'_>) {
+        self.0.before(stage, depth, queues);
+        self.1.before(stage, depth, queues);
+    }
+    fn after(&mut self, run: &StageRun, queues: &Queues<'_>) {
+        self.0.after(run, queues);
+        self.1.after(run, queues);
+    }
+    fn wave_done(&mut self, done: u64, total: u64) {
+        self.0.wave_done(done, total);
+        self.1.wave_done(done, total);
+    }
+}
+
+impl<O: Observer + ?Sized> Observer for &mut O {
+    fn before(&mut self, stage: Stage, depth: u32, queues: &Queues<'_>) {
+        (**self).before(stage, depth, queues);
+    }
+    fn after(&mut self, run: &StageRun, queues: &Queues<'_>) {
+        (**self).after(run, queues);
+    }
+    fn wave_done(&mut self, done: u64, total: u64) {
+        (**self).wave_done(done, total);
+    }
+}
+
+/// Calls a closure with (pixels done, pixels total) after each wave: a progress report.
+#[derive(Debug)]
+pub struct Progress<F>(pub F);
+
+impl<F: FnMut(u64, u64)> Observer for Progress<F> {
+    fn wave_done(&mut self, done: u64, total: u64) {
+        (self.0)(done, total);
+    }
+}
