@@ -1,5 +1,6 @@
 //! The image does not depend on how the kD tree was made or how many threads trace it: midpoint,
-//! SAH and a tree file written and read back give byte-identical Sibenik renders.
+//! SAH and a tree file written and read back give byte-identical Sibenik renders; and the builders
+//! give the same tree on any number of threads, on meshes large enough to build in parallel.
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::mesh::TriangleMesh;
@@ -10,7 +11,7 @@ use wavefront::scene::builtin::sibenik;
 /// huge leaves make full frames slow), with the given tree.
 fn render_with(tree: TreeSource, threads: usize, mesh: &std::path::Path) -> Vec<u8> {
     let mut scene = sibenik(true);
-    scene.meshes[0].path = mesh.to_path_buf();
+    scene.meshes[0].path = mesh.to_path_buf(); // resolved by the test kit
     scene.meshes[0].kdtree = tree;
     scene.image.width = 128;
     scene.image.height = 128;
@@ -56,4 +57,35 @@ fn midpoint_sah_and_tree_file_render_identically_on_any_thread_count() {
         );
     }
     let _ = std::fs::remove_file(&file);
+}
+
+/// A seeded soup of `n` small triangles in a 100-unit cube: large enough that the builders' upper
+/// levels take the parallel path (the SAH builder forks above 4,096 triangles per node).
+fn soup(n: usize) -> TriangleMesh {
+    let mut rng = wavefront::sampling::Rng(0x50_0b);
+    let mut v = Vec::with_capacity(3 * n);
+    for _ in 0..n {
+        let c = [0; 3].map(|_| rng.range(0.0, 100.0));
+        for _ in 0..3 {
+            v.push([0, 1, 2].map(|k| c[k] + rng.range(-1.0, 1.0)));
+        }
+    }
+    let idx = (0..n as u32)
+        .map(|t| [3 * t, 3 * t + 1, 3 * t + 2])
+        .collect();
+    TriangleMesh::new(v, idx)
+}
+
+#[test]
+fn large_meshes_build_the_same_tree_on_1_2_and_4_threads() {
+    let mesh = soup(40_000);
+    for method in [BuildMethod::Sah, BuildMethod::Midpoint] {
+        let one = wavefront_kit::testkit::in_pool(1, || KdTree::build(&mesh, method));
+        one.validate(&mesh).expect("valid tree");
+        assert!(one.nodes().len() > 1000, "{method:?}: a deep tree");
+        for threads in [2, 4] {
+            let many = wavefront_kit::testkit::in_pool(threads, || KdTree::build(&mesh, method));
+            assert!(one == many, "{method:?} tree differs on {threads} threads");
+        }
+    }
 }

@@ -83,9 +83,15 @@ fn a_pixel_range_renders_exactly_the_full_images_pixels_there() {
     };
     let part = render_png_bytes_with(&scene, options);
     let bytes = range.start as usize * 3..range.end as usize * 3;
-    assert!(full[bytes.clone()] == part[bytes.clone()], "pixels inside the range differ");
     assert!(
-        part[..bytes.start].iter().chain(&part[bytes.end..]).all(|&b| b == 0),
+        full[bytes.clone()] == part[bytes.clone()],
+        "pixels inside the range differ"
+    );
+    assert!(
+        part[..bytes.start]
+            .iter()
+            .chain(&part[bytes.end..])
+            .all(|&b| b == 0),
         "pixels outside the range were rendered"
     );
 }

@@ -6,36 +6,21 @@ use rayon::prelude::*;
 use wavefront::accel::kdtree::{BuildMethod, KdTree, TriHit};
 use wavefront::geometry::triangle::{WatertightRay, intersect_all_closest, intersect_all_occluded};
 use wavefront::mesh::TriangleMesh;
+use wavefront::sampling::Rng;
 
-/// Tiny seeded generator (xorshift64*), so the tests need no extra crates.
-struct Rng(u64);
-
-impl Rng {
-    fn next_u64(&mut self) -> u64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        self.0.wrapping_mul(0x2545_f491_4f6c_dd1d)
-    }
-    /// Uniform in [0, 1).
-    fn f(&mut self) -> f32 {
-        (self.next_u64() >> 40) as f32 / (1u64 << 24) as f32
-    }
-    fn range(&mut self, lo: f32, hi: f32) -> f32 {
-        lo + (hi - lo) * self.f()
-    }
-    fn dir(&mut self) -> Vec3 {
-        loop {
-            let v = Vec3::new(
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-                self.range(-1.0, 1.0),
-            );
-            let l = v.length();
-            if l > 0.05 && l <= 1.0 {
-                // Unnormalised on purpose.
-                return v * self.range(0.1, 10.0);
-            }
+/// A random unnormalised direction: uniform in the unit ball (away from the centre), scaled by
+/// 0.1–10.
+fn random_dir(rng: &mut Rng) -> Vec3 {
+    loop {
+        let v = Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        );
+        let l = v.length();
+        if l > 0.05 && l <= 1.0 {
+            // Unnormalised on purpose.
+            return v * rng.range(0.1, 10.0);
         }
     }
 }
@@ -166,13 +151,13 @@ fn sibenik_rays(mesh: &TriangleMesh, tree: &KdTree) -> Vec<(Vec3, Vec3)> {
     // Origins inside the box, random directions.
     for _ in 0..45_000 {
         let o = inside(&mut rng);
-        rays.push((o, rng.dir()));
+        rays.push((o, random_dir(&mut rng)));
     }
     // Origins outside, aimed at points inside (and some random, mostly missing).
     for i in 0..30_000 {
-        let o = centre + rng.dir().normalize() * 40.0;
+        let o = centre + random_dir(&mut rng).normalize() * 40.0;
         let d = if i % 5 == 0 {
-            rng.dir()
+            random_dir(&mut rng)
         } else {
             (inside(&mut rng) - o) * rng.range(0.01, 3.0)
         };
@@ -189,7 +174,7 @@ fn sibenik_rays(mesh: &TriangleMesh, tree: &KdTree) -> Vec<(Vec3, Vec3)> {
         let (axis, s) = splits[(rng.next_u64() % splits.len() as u64) as usize];
         let mut o = inside(&mut rng);
         o[axis] = s;
-        let mut d = rng.dir();
+        let mut d = random_dir(&mut rng);
         if i % 3 == 0 {
             d[axis] = if i % 2 == 0 { 0.0 } else { -0.0 }; // parallel to, and in, the plane
         }
@@ -425,7 +410,7 @@ fn every_ray_from_inside_a_closed_cube_hits_it() {
                 rng.range(-0.9, 0.9),
                 rng.range(-0.9, 0.9),
             );
-            let mut d = rng.dir();
+            let mut d = random_dir(&mut rng);
             if i % 4 == 0 {
                 d[i % 3] = if i % 8 == 0 { 0.0 } else { -0.0 };
             }
@@ -512,7 +497,7 @@ fn empty_and_all_degenerate_meshes_never_hit() {
                     rng.range(-1.0, 3.0),
                     rng.range(-1.0, 3.0),
                 );
-                let d = rng.dir();
+                let d = random_dir(&mut rng);
                 assert_eq!(tree.intersect_closest(&mesh, o, d, f32::INFINITY), None);
                 assert!(!tree.intersect_occluded(&mesh, o, d, f32::INFINITY));
             }

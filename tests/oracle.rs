@@ -5,7 +5,7 @@ use std::sync::OnceLock;
 
 use wavefront::Scene;
 use wavefront::scene::RenderMode;
-use wavefront::scene::builtin::{sibenik, spheres};
+use wavefront::scene::builtin::spheres;
 use wavefront_kit::oracle::{ImageDiff, compare_rgb8};
 use wavefront_kit::testkit::*;
 
@@ -138,8 +138,9 @@ const SIBENIK_OVER_16: f64 = 0.002;
 /// 43 of them on the anti-diagonal, whose rays graze the top edge of a wall (see
 /// `sibenik_at_low_resolution_matches_the_oracle`), the rest on shadow boundaries and silhouettes.
 fn sibenik_matches_the_oracle(shadows: bool) {
-    let Some(_) = sibenik_mesh() else { return };
-    let s = sibenik(shadows);
+    let Some(s) = sibenik_scene(shadows) else {
+        return;
+    };
     let wavefront = render_png_bytes(&s);
     let d = compare_rgb8(&wavefront, &oracle_png_bytes(&s));
     println!("sibenik, shadows {shadows}: {d}");
@@ -177,9 +178,10 @@ fn sibenik_at_low_resolution_matches_the_oracle() {
     // purpose: in a square image the anti-diagonal's rays have d.y = −d.z exactly, and from the eye
     // (0, −10, 0) they graze the top edge of a wall (triangles 66371 and 66382, y = −12.83,
     // z = −2.83) — coin flips between f32 and f64.
-    let Some(_) = sibenik_mesh() else { return };
     for shadows in [false, true] {
-        let mut s = sibenik(shadows);
+        let Some(mut s) = sibenik_scene(shadows) else {
+            return;
+        };
         s.image.width = 48;
         s.image.height = 47;
         let d = diff_against_oracle(&s);
@@ -257,18 +259,20 @@ fn scene_a_at_sixty_four_samples_matches_the_antialiasing_figure() {
 
 #[test]
 fn oracle_matches_the_sibenik_figures() {
-    let Some(_) = sibenik_mesh() else { return };
+    let (Some(plain), Some(shadowed)) = (sibenik_scene(false), sibenik_scene(true)) else {
+        return;
+    };
     check_reference(
         "pa4_fig2a_sibenik_noshadows.png",
         "oracle",
-        &oracle_png_bytes(&sibenik(false)),
+        &oracle_png_bytes(&plain),
         SIBENIK_MAE,
         SIBENIK_OVER_16,
     );
     check_reference(
         "pa4_fig2b_sibenik_shadows.png",
         "oracle",
-        &oracle_png_bytes(&sibenik(true)),
+        &oracle_png_bytes(&shadowed),
         SIBENIK_MAE,
         SIBENIK_OVER_16,
     );

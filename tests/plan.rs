@@ -3,9 +3,9 @@
 
 use wavefront::Pipeline;
 use wavefront::Scene;
+use wavefront::Stage;
 use wavefront::scene::builtin::{sibenik, spheres};
 use wavefront::scene::{RenderMode, file};
-use wavefront::Stage;
 use wavefront_kit::testkit::*;
 
 /// The stages of `pipeline` at each depth.

@@ -382,11 +382,9 @@ impl Cx<'_> {
 
         let mut meshes = Vec::with_capacity(raw.mesh.len());
         for (i, m) in raw.mesh.iter().enumerate() {
-            let kdtree = match m.kdtree.as_ref().map(|k| k.get_ref().as_str()) {
-                None | Some("sah") => TreeSource::Sah,
-                Some("midpoint") => TreeSource::Midpoint,
-                Some(file) => TreeSource::File(self.relative(file)),
-            };
+            let kdtree = m.kdtree.as_ref().map_or(TreeSource::Sah, |k| {
+                TreeSource::parse(k.get_ref(), |file| self.relative(file))
+            });
             meshes.push(MeshRef {
                 path: self.relative(m.path.get_ref()),
                 material: find(&m.material, format!("mesh[{i}].material"))?,

@@ -175,6 +175,18 @@ pub enum TreeSource {
     File(PathBuf),
 }
 
+impl TreeSource {
+    /// Parses a `kdtree` value (scene file or `--kdtree`): `sah`, `midpoint`, or a tree file,
+    /// resolved by `path` (relative to the scene file, or as given on the command line).
+    pub fn parse(value: &str, path: impl FnOnce(&str) -> PathBuf) -> TreeSource {
+        match value {
+            "sah" => TreeSource::Sah,
+            "midpoint" => TreeSource::Midpoint,
+            file => TreeSource::File(path(file)),
+        }
+    }
+}
+
 /// A triangle mesh referenced by path.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MeshRef {

@@ -26,11 +26,7 @@ pub struct Overrides {
 impl Overrides {
     /// Parses a `--kdtree` value: a builder name or a tree file path.
     pub fn tree_source(value: &str) -> TreeSource {
-        match value {
-            "sah" => TreeSource::Sah,
-            "midpoint" => TreeSource::Midpoint,
-            file => TreeSource::File(PathBuf::from(file)),
-        }
+        TreeSource::parse(value, |file| PathBuf::from(file))
     }
 
     /// Applies the overrides to `scene`, rejecting out-of-range values.

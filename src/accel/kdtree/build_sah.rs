@@ -553,7 +553,7 @@ mod tests {
     }
 
     #[test]
-    fn build_is_deterministic_across_thread_counts() {
+    fn build_of_a_small_mesh_is_deterministic_across_thread_counts() {
         let mesh = corner_mesh();
         let a = KdTree::build(&mesh, BuildMethod::Sah);
         let pool = rayon::ThreadPoolBuilder::new()

@@ -972,63 +972,25 @@ mod tests {
         assert_eq!((t[0], p[0] / 2), (1.0, 4));
     }
 
-    /// Minimal OBJ reader for the test only: `v x y z` and `f a b c ...`
-    /// (1-based, `a/b/c` forms and negative indices allowed, fans for polygons).
-    fn load_obj(path: &str) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
-        let text = std::fs::read_to_string(path).expect("read obj");
-        let mut v = Vec::new();
-        let mut f = Vec::new();
-        for line in text.lines() {
-            let mut it = line.split_whitespace();
-            match it.next() {
-                Some("v") => {
-                    let c: Vec<f32> = it.take(3).map(|s| s.parse().unwrap()).collect();
-                    v.push([c[0], c[1], c[2]]);
-                }
-                Some("f") => {
-                    let ids: Vec<u32> = it
-                        .map(|s| {
-                            let i: i64 = s.split('/').next().unwrap().parse().unwrap();
-                            (if i < 0 { v.len() as i64 + i } else { i - 1 }) as u32
-                        })
-                        .collect();
-                    for k in 1..ids.len() - 1 {
-                        f.push([ids[0], ids[k], ids[k + 1]]);
-                    }
-                }
-                _ => {}
-            }
-        }
-        (v, f)
+    /// The benchmark camera: the built-in Sibenik scene's pixel-centre primary rays.
+    fn sibenik_primary(n: u32) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
+        let camera = wavefront::scene::builtin::sibenik(false).camera;
+        let dirs = camera.pixel_centre_directions(n, n);
+        let eye = camera.eye.to_array();
+        (
+            vec![eye; dirs.len()],
+            dirs.iter().map(|d| d.to_array()).collect(),
+        )
     }
-
-    /// The benchmark camera: 512x512 pixel-centre primary rays.
-    fn sibenik_primary(n: usize) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
-        let eye = [0.0f32, -10.0, 0.0];
-        let (u, v, w) = ([0.0f32, 0.0, 1.0], [0.0f32, 1.0, 0.0], [-1.0f32, 0.0, 0.0]);
-        let (l, r, b, t, d) = (-0.1f32, 0.1f32, -0.1f32, 0.1f32, 0.1f32);
-        let mut dirs = Vec::with_capacity(n * n);
-        for j in 0..n {
-            for i in 0..n {
-                let us = l + (r - l) * (i as f32 + 0.5) / n as f32;
-                let vs = t - (t - b) * (j as f32 + 0.5) / n as f32;
-                dirs.push(std::array::from_fn(|k| us * u[k] + vs * v[k] - d * w[k]));
-            }
-        }
-        (vec![eye; n * n], dirs)
-    }
-
-    const SIBENIK: &str = "/work/shared/data/sibenik/sibenik.obj";
 
     #[test]
     fn sibenik_single_vs_stream_agree() {
-        if !std::path::Path::new(SIBENIK).exists() {
-            eprintln!("skipping: {SIBENIK} not found");
+        let Some(mesh) = crate::testkit::sibenik_triangles() else {
             return;
-        }
-        let (v, f) = load_obj(SIBENIK);
+        };
+        let (v, f) = (&mesh.vertices, &mesh.indices);
         assert_eq!(f.len(), 75_284);
-        let scene = EmbreeScene::new(&v, &f).expect("sibenik scene");
+        let scene = EmbreeScene::new(v, f).expect("sibenik scene");
         eprintln!(
             "sibenik: {} tris, build {:.1} ms",
             f.len(),
