@@ -27,6 +27,7 @@
 pub mod accel;
 pub mod error;
 pub mod film;
+pub mod frame;
 pub mod geometry;
 pub mod mesh;
 pub mod queue;

@@ -86,59 +86,9 @@ impl TriangleMesh {
         TriangleMesh { vertices, indices }
     }
 
-    /// Loads an OBJ file through `tobj` (triangulated, single index, all models merged in file
-    /// order, so triangle `k` is the `k`-th face of the file; polygons are fanned in place).
-    ///
-    /// Errors name the file and line: unreadable file, non-finite coordinates (the `v` line),
-    /// face indices out of range (the `f` line), and parse errors.
+    /// Loads an OBJ file in its own coordinates (see [`ObjMesh::read`]).
     pub fn load_obj(path: &Path) -> Result<TriangleMesh, MeshError> {
-        let text = std::fs::read_to_string(path).map_err(|source| MeshError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        let options = tobj::LoadOptions {
-            triangulate: true,
-            single_index: true,
-            ..Default::default()
-        };
-        let loaded = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &options, |_| {
-            Err(tobj::LoadError::OpenFileFailed)
-        });
-        let models = match loaded {
-            Ok((models, _materials)) => models,
-            Err(e) => {
-                return Err(
-                    scan_for_error(&text, path).unwrap_or_else(|| MeshError::Obj {
-                        path: path.to_path_buf(),
-                        message: e.to_string(),
-                    }),
-                );
-            }
-        };
-        let mut mesh = TriangleMesh::default();
-        for model in &models {
-            let m = &model.mesh;
-            let base = mesh.vertices.len() as u32;
-            mesh.vertices
-                .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
-            mesh.indices.extend(
-                m.indices
-                    .chunks_exact(3)
-                    .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
-            );
-        }
-        let n = mesh.vertices.len();
-        let finite = mesh.vertices.iter().flatten().all(|c| c.is_finite());
-        let in_range = mesh.indices.iter().flatten().all(|&i| (i as usize) < n);
-        if !finite || !in_range {
-            return Err(
-                scan_for_error(&text, path).unwrap_or_else(|| MeshError::Obj {
-                    path: path.to_path_buf(),
-                    message: "invalid vertex data".to_string(),
-                }),
-            );
-        }
-        Ok(mesh)
+        ObjMesh::read(path)?.to_frame(DVec3::ZERO)
     }
 
     /// Number of triangles.
@@ -189,6 +139,107 @@ impl TriangleMesh {
                 (lo.min(v), hi.max(v))
             },
         )
+    }
+}
+
+/// An OBJ file's triangles with the positions as written, in f64: what the render frame's f32
+/// mesh ([`ObjMesh::to_frame`]) and the f64 oracle are both made from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ObjMesh {
+    /// The file read.
+    pub path: PathBuf,
+    /// Vertex positions, as parsed (f64).
+    pub positions: Vec<[f64; 3]>,
+    /// Vertex indices of each triangle; triangle `k` is the `k`-th face of the file.
+    pub indices: Vec<[u32; 3]>,
+}
+
+impl ObjMesh {
+    /// Reads an OBJ file through `tobj` in f64 (triangulated, single index, all models merged in
+    /// file order, so triangle `k` is the `k`-th face of the file; polygons are fanned in place).
+    ///
+    /// Errors name the file and line: unreadable file, non-finite coordinates (the `v` line),
+    /// face indices out of range (the `f` line), and parse errors.
+    pub fn read(path: &Path) -> Result<ObjMesh, MeshError> {
+        let text = std::fs::read_to_string(path).map_err(|source| MeshError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let options = tobj::LoadOptions {
+            triangulate: true,
+            single_index: true,
+            ..Default::default()
+        };
+        let loaded = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &options, |_| {
+            Err(tobj::LoadError::OpenFileFailed)
+        });
+        let invalid = |message: &str| {
+            scan_for_error(&text, path).unwrap_or_else(|| MeshError::Obj {
+                path: path.to_path_buf(),
+                message: message.to_string(),
+            })
+        };
+        let models = match loaded {
+            Ok((models, _materials)) => models,
+            Err(e) => return Err(invalid(&e.to_string())),
+        };
+        let mut mesh = ObjMesh {
+            path: path.to_path_buf(),
+            ..ObjMesh::default()
+        };
+        for model in &models {
+            let m = &model.mesh;
+            let base = mesh.positions.len() as u32;
+            mesh.positions
+                .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
+            mesh.indices.extend(
+                m.indices
+                    .chunks_exact(3)
+                    .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
+            );
+        }
+        let n = mesh.positions.len();
+        // Coordinates must also be finite as f32 (the render frame's type).
+        let finite = mesh
+            .positions
+            .iter()
+            .flatten()
+            .all(|&c| (c as f32).is_finite());
+        let in_range = mesh.indices.iter().flatten().all(|&i| (i as usize) < n);
+        if !finite || !in_range {
+            return Err(invalid("invalid vertex data"));
+        }
+        Ok(mesh)
+    }
+
+    /// The mesh in a render frame whose origin is `origin` (world coordinates): each position
+    /// `p − origin` computed in f64, then rounded once to f32.
+    pub fn to_frame(&self, origin: DVec3) -> Result<TriangleMesh, MeshError> {
+        let vertices: Vec<[f32; 3]> = self
+            .positions
+            .iter()
+            .map(|p| (DVec3::from_array(*p) - origin).as_vec3().to_array())
+            .collect();
+        if !vertices.iter().flatten().all(|c| c.is_finite()) {
+            return Err(MeshError::Obj {
+                path: self.path.clone(),
+                message: format!("a vertex is out of f32 range relative to the eye at {origin}"),
+            });
+        }
+        Ok(TriangleMesh {
+            vertices,
+            indices: self.indices.clone(),
+        })
+    }
+
+    /// Number of triangles.
+    pub fn len(&self) -> usize {
+        self.indices.len()
+    }
+
+    /// True when the mesh has no triangles.
+    pub fn is_empty(&self) -> bool {
+        self.indices.is_empty()
     }
 }
 

@@ -7,13 +7,13 @@ use glam::Vec3;
 
 use crate::accel::kdtree::{BuildMethod, KdTree};
 use crate::error::{LoadError, SceneError};
-use crate::geometry::offset::{EXACT_POINT_ULPS, RAY_POINT_ULPS, offset_origin};
-use crate::geometry::{plane, sphere};
+use crate::frame::{Light, Plane, RenderFrame, Sphere};
+use crate::geometry::offset::{gamma, offset_fixed, offset_ray_origin};
+use crate::geometry::{plane, sphere, triangle};
+use crate::mesh::ObjMesh;
 use crate::mesh::TriangleMesh;
 use crate::queue::PrimId;
-use crate::scene::{
-    Material, Plane, PointLight, Robustness, Scene, Sphere, SphereTest, TreeSource,
-};
+use crate::scene::{Material, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
 
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -97,8 +97,9 @@ pub struct World {
     /// `None` when the scene has no mesh (no acceleration structure).
     triangles: Option<Triangles>,
     materials: Vec<Material>,
-    lights: Vec<PointLight>,
+    lights: Vec<Light>,
     robustness: Robustness,
+    frame: RenderFrame,
 }
 
 impl World {
@@ -109,21 +110,27 @@ impl World {
 
     /// [`World::load`], also saying how long loading and building took.
     pub fn load_timed(scene: &Scene) -> Result<(World, SetupTimes), LoadError> {
+        let frame = RenderFrame::at(scene.camera.eye);
         let (triangles, times) = if scene.meshes.is_empty() {
             (None, SetupTimes::default())
         } else {
-            let (t, times) = load_triangles(scene)?;
+            let (t, times) = load_triangles(scene, &frame)?;
             (Some(t), times)
         };
-        let world = World {
-            spheres: scene.spheres.clone(),
-            planes: scene.planes.clone(),
+        Ok((World::analytic(scene, frame, triangles), times))
+    }
+
+    /// The scene's analytic primitives, materials and lights in `frame`, with `triangles`.
+    fn analytic(scene: &Scene, frame: RenderFrame, triangles: Option<Triangles>) -> World {
+        World {
+            spheres: scene.spheres.iter().map(|s| frame.sphere(s)).collect(),
+            planes: scene.planes.iter().map(|p| frame.plane(p)).collect(),
             triangles,
             materials: scene.materials.clone(),
-            lights: scene.lights.clone(),
+            lights: scene.lights.iter().map(|l| frame.light(l)).collect(),
             robustness: scene.render.robustness,
-        };
-        Ok((world, times))
+            frame,
+        }
     }
 
     /// The same geometry traced with other numerical variants (the error report compares them
@@ -138,8 +145,13 @@ impl World {
         &self.materials
     }
 
+    /// The render frame everything is traced in (world coordinates minus the eye).
+    pub fn frame(&self) -> &RenderFrame {
+        &self.frame
+    }
+
     /// Point lights.
-    pub fn lights(&self) -> &[PointLight] {
+    pub fn lights(&self) -> &[Light] {
         &self.lights
     }
 
@@ -163,22 +175,25 @@ impl World {
         self.robustness
     }
 
-    /// Builds a world around an already loaded mesh and tree (for tests and benchmarks).
-    pub fn with_mesh(scene: &Scene, mesh: TriangleMesh, tree: KdTree) -> World {
+    /// Builds a world around a mesh given in world coordinates (for tests and benchmarks): the
+    /// mesh is moved into the scene's render frame and a tree built over it with `method`.
+    pub fn with_mesh(scene: &Scene, mesh: &TriangleMesh, method: BuildMethod) -> World {
+        let frame = RenderFrame::at(scene.camera.eye);
+        let vertices = mesh
+            .vertices
+            .iter()
+            .map(|v| frame.point(Vec3::from_array(*v).as_dvec3()).to_array())
+            .collect();
+        let mesh = TriangleMesh::new(vertices, mesh.indices.clone());
+        let tree = KdTree::build(&mesh, method);
         let material = scene.meshes.first().map_or(0, |m| m.material);
-        World {
-            spheres: scene.spheres.clone(),
-            planes: scene.planes.clone(),
-            triangles: Some(Triangles {
-                mesh,
-                material_ranges: vec![(0, material)],
-                tree,
-                source: TreeSource::Sah,
-            }),
-            materials: scene.materials.clone(),
-            lights: scene.lights.clone(),
-            robustness: scene.render.robustness,
-        }
+        let triangles = Triangles {
+            mesh,
+            material_ranges: vec![(0, material)],
+            tree,
+            source: TreeSource::Sah,
+        };
+        World::analytic(scene, frame, Some(triangles))
     }
 
     /// Decodes a primitive id.
@@ -322,22 +337,23 @@ impl World {
     /// The surface at a hit: point, normal facing the incoming direction `d`, material, and the
     /// origin for rays leaving it.
     ///
-    /// Sphere and plane hits are re-projected onto the surface, which leaves an error of a few
-    /// ulps, and are offset by [`EXACT_POINT_ULPS`]; triangle hits keep `o + t·d`, whose error grows
-    /// with `t`, and are offset by [`RAY_POINT_ULPS`].
+    /// Every primitive kind computes its hit point with an error bound (spheres and planes
+    /// re-project `o + t·d` onto the surface, triangles rebuild it from barycentric coordinates),
+    /// and rays leave from the point pushed along the facing normal by that bound
+    /// ([`offset_ray_origin`]).
     #[inline]
     pub fn surface(&self, prim: PrimId, o: Vec3, d: Vec3, t: f32) -> Surface {
         let p = o + t * d;
-        let (point, n, material, ulps) = match self.prim_kind(prim) {
+        let (point, n, material, error) = match self.prim_kind(prim) {
             PrimKind::Sphere(i) => {
                 let s = &self.spheres[i];
-                let (p, n) = sphere::reproject(p, s.center, s.radius);
-                (p, n, s.material, EXACT_POINT_ULPS)
+                let (p, n, error) = sphere::reproject(p, s.center, s.radius);
+                (p, n, s.material, error)
             }
             PrimKind::Plane(i) => {
                 let pl = &self.planes[i];
-                let p = p - (p - pl.point).dot(pl.normal) * pl.normal;
-                (p, pl.normal, pl.material, EXACT_POINT_ULPS)
+                let (p, error) = plane::reproject(p, pl.point, pl.normal);
+                (p, pl.normal, pl.material, error)
             }
             PrimKind::Triangle(k) => {
                 let tris = self
@@ -345,20 +361,29 @@ impl World {
                     .as_ref()
                     .expect("triangle id without triangles");
                 let n = tris.mesh.geometric_normal(k).normalize();
-                (p, n, tris.material(k as u32), RAY_POINT_ULPS)
+                let (p, error) = triangle::hit_point(o, d, tris.mesh.triangle(k))
+                    .unwrap_or_else(|| (p, gamma(8) * (o.abs() + (t * d).abs())));
+                (p, n, tris.material(k as u32), error)
             }
         };
         let normal = if n.dot(d) > 0.0 { -n } else { n };
+        let spawn = match self.robustness.offset {
+            OffsetMethod::ErrorBound => offset_ray_origin(point, error, normal),
+            OffsetMethod::FixedEpsilon => offset_fixed(point, normal),
+        };
         Surface {
             point,
             normal,
             material,
-            spawn: offset_origin(point, normal, ulps, self.robustness.offset),
+            spawn,
         }
     }
 }
 
-fn load_triangles(scene: &Scene) -> Result<(Triangles, SetupTimes), LoadError> {
+fn load_triangles(
+    scene: &Scene,
+    frame: &RenderFrame,
+) -> Result<(Triangles, SetupTimes), LoadError> {
     let start = Instant::now();
     let mut mesh = TriangleMesh::default();
     let mut material_ranges = Vec::with_capacity(scene.meshes.len());
@@ -366,7 +391,7 @@ fn load_triangles(scene: &Scene) -> Result<(Triangles, SetupTimes), LoadError> {
         if !m.path.exists() {
             return Err(crate::scene::builtin::missing_mesh(&m.path).into());
         }
-        let part = TriangleMesh::load_obj(&m.path)?;
+        let part = ObjMesh::read(&m.path)?.to_frame(frame.origin)?;
         material_ranges.push((mesh.len() as u32, m.material));
         let base = mesh.vertices.len() as u32;
         mesh.vertices.extend_from_slice(&part.vertices);
@@ -380,7 +405,7 @@ fn load_triangles(scene: &Scene) -> Result<(Triangles, SetupTimes), LoadError> {
     let tree = match &source {
         TreeSource::Sah => KdTree::build(&mesh, BuildMethod::Sah),
         TreeSource::Midpoint => KdTree::build(&mesh, BuildMethod::Midpoint),
-        TreeSource::File(path) => KdTree::load_text(path, mesh.len())?,
+        TreeSource::File(path) => KdTree::load_text_in(path, mesh.len(), frame)?,
     };
     let times = SetupTimes {
         load_seconds,

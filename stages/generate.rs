@@ -1,6 +1,7 @@
 //! Stage `generate`: camera rays for one wave of pixels (SPEC §1).
 //!
-//! Reads: camera, image settings, the wave's pixel range.
+//! Reads: camera, image settings, the wave's pixel range. Rays start at the eye, which is the
+//! origin of the render frame ([`crate::frame`]).
 //! Writes: [`CameraRays`] — every column of the depth-0 `RayQueue`, one row per sample, slots in
 //! order.
 
@@ -36,7 +37,8 @@ pub fn camera_ray(
     let (pixel, s) = wave.pixel_of(slot);
     let (dx, dy) = strata.offset(image.seed, pixel.0, s);
     RayItem {
-        origin: camera.eye,
+        origin: Vec3::ZERO, // the eye: the render frame's origin
+
         direction: camera.ray_direction(pixel, (dx, dy), image.width, image.height),
         t_max: f32::INFINITY,
         weight: Vec3::ONE,
@@ -58,7 +60,7 @@ pub fn generate_camera_rays(
         .map(|s| camera_ray(camera, image, wave, &strata, SampleSlot(s)).direction)
         .collect_into_vec(out.direction);
     out.origin.clear();
-    out.origin.resize(n, camera.eye);
+    out.origin.resize(n, Vec3::ZERO); // the eye: the render frame's origin
     out.t_max.clear();
     out.t_max.resize(n, f32::INFINITY);
     out.weight.clear();

@@ -12,9 +12,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::film::SampleBuffer;
+use crate::frame::Light;
+use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::{gather, kept_rows};
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, RowIndex, SampleSlot, ShadowQueue};
-use crate::scene::{Material, PointLight, Scene};
+use crate::scene::{Material, Scene};
 use crate::world::{Surface, World};
 
 crate::column_set! {
@@ -87,7 +89,7 @@ impl ShadeSettings {
 /// `p` itself gives nothing.
 #[inline]
 pub fn direct_light(
-    light: &PointLight,
+    light: &Light,
     m: &Material,
     specular: bool,
     p: Vec3,
@@ -144,7 +146,9 @@ pub fn shade_hit(
             Some(o) if n_dot_l > 0.0 && c != Vec3::ZERO => {
                 let to = light.position - o;
                 let dist = to.length();
-                shadow(j, Some((o, to / dist, dist, w * c)));
+                let dir = to / dist;
+                let t_max = shadow_t_max(light.position, dir, dist);
+                shadow(j, Some((o, dir, t_max, w * c)));
             }
             Some(_) => shadow(j, None),
         }
@@ -361,7 +365,7 @@ mod tests {
     #[test]
     fn a_light_behind_the_surface_sends_no_shadow_ray() {
         let mut scene = spheres();
-        scene.lights[0].position = Vec3::new(0.0, -10.0, 0.0); // below the floor
+        scene.lights[0].position = glam::DVec3::new(0.0, -10.0, 0.0); // below the floor
         let world = World::load(&scene).unwrap();
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
@@ -389,7 +393,7 @@ mod tests {
             p: 0.0,
             alpha: 0.0,
         };
-        let light = PointLight {
+        let light = Light {
             position: Vec3::new(0.0, 0.0, 1.0),
             intensity: Vec3::ONE,
         };

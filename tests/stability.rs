@@ -5,7 +5,7 @@
 //! geometric fact, with the tolerance stated where it is set.
 
 use glam::{DVec3, Vec3};
-use wavefront::accel::kdtree::{BuildMethod, KdTree};
+use wavefront::accel::kdtree::BuildMethod;
 use wavefront::geometry::sphere::{intersect_naive, intersect_stable};
 use wavefront::mesh::TriangleMesh;
 use wavefront::queue::{HitColumns, PrimId, RayItem, RayQueue, SampleSlot};
@@ -119,13 +119,13 @@ fn scaled_mask(s: f32) -> Vec<u8> {
     scene.image.width = 128;
     scene.image.height = 128;
     scene.render.mode = RenderMode::HitMask;
-    scene.camera.eye *= s;
+    scene.camera.eye *= f64::from(s);
     for sp in &mut scene.spheres {
-        sp.center *= s;
+        sp.center *= f64::from(s);
         sp.radius *= s;
     }
     for p in &mut scene.planes {
-        p.point *= s;
+        p.point *= f64::from(s);
     }
     let world = World::load(&scene).unwrap();
     let (film, _) = render(&scene, &world, RenderOptions::default(), |_, _| {});
@@ -187,7 +187,7 @@ fn secondary_rays_leaving_spheres_far_out_never_rehit_them() {
         let radius = 1.0;
         let scene = sphere_scene(
             vec![Sphere {
-                center,
+                center: center.as_dvec3(),
                 radius,
                 material: 0,
             }],
@@ -243,14 +243,13 @@ fn secondary_rays_leaving_triangles_far_out_never_rehit_them() {
             vertices: v.to_vec(),
             indices: i.to_vec(),
         };
-        let tree = KdTree::build(&mesh, BuildMethod::Sah);
         let mut scene = sphere_scene(vec![], vec![]);
         scene.meshes = vec![MeshRef {
             path: "quad".into(),
             material: 0,
             kdtree: TreeSource::Sah,
         }];
-        let world = World::with_mesh(&scene, mesh, tree);
+        let world = World::with_mesh(&scene, &mesh, BuildMethod::Sah);
         let mut rng = Rng(7 + scale.to_bits() as u64);
         let eye = Vec3::new(0.0, 0.0, 3.0 * scale);
         for _ in 0..20_000 {
@@ -311,11 +310,10 @@ fn no_light_leaks_into_a_closed_thin_walled_box() {
     for size in [1.0f32, 1e2, 1e4] {
         let mesh = hollow_box(size, 1e-3 * size);
         for method in [BuildMethod::Sah, BuildMethod::Midpoint] {
-            let tree = KdTree::build(&mesh, method);
             let mut scene = sphere_scene(
                 vec![],
                 vec![PointLight {
-                    position: Vec3::new(0.3, 0.9, 1.7) * size,
+                    position: DVec3::new(0.3, 0.9, 1.7) * f64::from(size),
                     intensity: Vec3::ONE,
                 }],
             );
@@ -329,12 +327,12 @@ fn no_light_leaks_into_a_closed_thin_walled_box() {
             scene.render.max_depth = 0;
             scene.image.width = 96;
             scene.image.height = 96;
-            scene.camera.eye = Vec3::new(0.1, -0.2, 0.3) * size;
+            scene.camera.eye = DVec3::new(0.1, -0.2, 0.3) * f64::from(size);
             scene.camera.l = -0.15;
             scene.camera.r = 0.15;
             scene.camera.b = -0.15;
             scene.camera.t = 0.15;
-            let world = World::with_mesh(&scene, mesh.clone(), tree);
+            let world = World::with_mesh(&scene, &mesh, method);
             let (film, stats) = render(&scene, &world, RenderOptions::default(), |_, _| {});
             let lit = film.pixels.iter().filter(|p| **p != Vec3::ZERO).count();
             assert_eq!(
@@ -423,11 +421,11 @@ fn no_nan_reaches_the_film_at_grazing_and_degenerate_shading() {
     scene.image.height = 64;
     scene.lights = vec![
         PointLight {
-            position: Vec3::new(0.0, -2.0, -5.0),
+            position: DVec3::new(0.0, -2.0, -5.0),
             intensity: Vec3::ONE,
         },
         PointLight {
-            position: Vec3::ZERO,
+            position: DVec3::ZERO,
             intensity: Vec3::ONE,
         },
     ];

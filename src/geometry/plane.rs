@@ -2,6 +2,8 @@
 
 use glam::Vec3;
 
+use super::offset::gamma;
+
 /// `t` where `o + t·d` meets the plane through `point` with normal `normal`, if `0 < t < t_max`.
 ///
 /// Rays parallel to the plane (`d·n = 0`) miss; NaN inputs miss.
@@ -10,6 +12,19 @@ pub fn intersect(o: Vec3, d: Vec3, point: Vec3, normal: Vec3, t_max: f32) -> Opt
     let denom = d.dot(normal);
     let t = (point - o).dot(normal) / denom;
     (t > 0.0 && t < t_max).then_some(t)
+}
+
+/// `p` projected onto the plane through `point` with unit normal `normal`, and the projection's
+/// error bound: `s = (p − q)·n` is within `γ(4)·Σ|(p − q)ᵢ nᵢ|`, and `p − s·n` rounds twice more
+/// per component (PBR 4th ed. §6.8 style bounds).
+#[inline]
+pub fn reproject(p: Vec3, point: Vec3, normal: Vec3) -> (Vec3, Vec3) {
+    let a = p - point;
+    let s = a.dot(normal);
+    let projected = p - s * normal;
+    let s_error = gamma(4) * (a * normal).abs().element_sum();
+    let error = normal.abs() * s_error + gamma(2) * (projected.abs() + (s * normal).abs());
+    (projected, error)
 }
 
 #[cfg(test)]

@@ -3,6 +3,8 @@
 
 use glam::{DVec3, Vec3};
 
+use super::offset::gamma;
+
 /// Nearest root `t` of `|o + t·d − c| = r` with `0 < t < t_max`, or `None`.
 ///
 /// Stable formulation (Haines, Günther & Akenine-Möller, Ray Tracing Gems ch. 7): with
@@ -56,12 +58,17 @@ fn pick(near: f32, far: f32, t_max: f32) -> Option<f32> {
     }
 }
 
-/// The point on the sphere in the direction of `p` from the centre: re-projecting a hit point
-/// removes the error of `o + t·d` before the offset of a secondary ray is applied.
+/// The point on the sphere in the direction of `p` from the centre, its unit normal and its error
+/// bound: re-projecting a hit point removes the error of `o + t·d` (PBR 4th ed. §6.8.5). The
+/// centre-relative vector `v = r·(p − c)/|p − c|` is within `γ(5)·|v|` per component, and adding
+/// the centre rounds once more (`γ(2)·|c + v|`, with margin).
 #[inline]
-pub fn reproject(p: Vec3, center: Vec3, radius: f32) -> (Vec3, Vec3) {
+pub fn reproject(p: Vec3, center: Vec3, radius: f32) -> (Vec3, Vec3, Vec3) {
     let n = (p - center).normalize();
-    (center + radius * n, n)
+    let v = radius * n;
+    let point = center + v;
+    let error = gamma(5) * v.abs() + gamma(2) * point.abs();
+    (point, n, error)
 }
 
 /// The stable formulation in f64: nearest root with `0 < t < t_max`.

@@ -7,6 +7,7 @@
 
 use glam::Vec3;
 
+use super::offset::gamma;
 use crate::mesh::TriangleMesh;
 
 /// Per-ray data of the watertight test, computed once per ray and shared by every triangle test
@@ -109,6 +110,41 @@ impl WatertightRay {
         // `t` is finite here (finite inputs, det != 0), or +-inf for a tiny det; never NaN.
         if t > 0.0 && t < t_max { Some(t) } else { None }
     }
+
+    /// The barycentric coordinates `(b0, b1, b2)` of the point where the ray meets the plane of
+    /// triangle `(p0, p1, p2)`, from the same edge functions as [`WatertightRay::intersect`]
+    /// (`b0 = U/det`, weight of `p0`, …). `None` for a triangle seen edge-on (`det = 0`).
+    #[inline]
+    pub fn barycentrics(&self, p0: [f32; 3], p1: [f32; 3], p2: [f32; 3]) -> Option<[f32; 3]> {
+        let o = self.origin.to_array();
+        let (kx, ky, kz) = (self.kx.min(2), self.ky.min(2), self.kz.min(2));
+        let shear = |p: [f32; 3]| {
+            let (x, y, z) = (p[kx] - o[kx], p[ky] - o[ky], p[kz] - o[kz]);
+            ((x - self.sx * z) as f64, (y - self.sy * z) as f64)
+        };
+        let ((ax, ay), (bx, by), (cx, cy)) = (shear(p0), shear(p1), shear(p2));
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let det = u + v + w;
+        let b = [(u / det) as f32, (v / det) as f32, (w / det) as f32];
+        (det != 0.0 && b.iter().all(|x| x.is_finite())).then_some(b)
+    }
+}
+
+/// The hit point of a ray on triangle `(p0, p1, p2)` reconstructed from its barycentric
+/// coordinates, `p = b0·p0 + b1·p1 + b2·p2`, with its error bound `γ(7)·Σ|bᵢ·pᵢ|` (PBR 4th ed.
+/// §6.8.4): unlike `o + t·d`, whose error grows with the distance travelled, this point lies on the
+/// triangle's plane within a few ulps of the vertices' own magnitude. `None` when the ray cannot
+/// be prepared or sees the triangle edge-on.
+#[inline]
+pub fn hit_point(origin: Vec3, dir: Vec3, tri: [Vec3; 3]) -> Option<(Vec3, Vec3)> {
+    let ray = WatertightRay::new(origin, dir)?;
+    let [b0, b1, b2] = ray.barycentrics(tri[0].into(), tri[1].into(), tri[2].into())?;
+    let (q0, q1, q2) = (b0 * tri[0], b1 * tri[1], b2 * tri[2]);
+    let point = q0 + q1 + q2;
+    let error = gamma(7) * (q0.abs() + q1.abs() + q2.abs());
+    Some((point, error))
 }
 
 /// A ray prepared for one ray/triangle test: traversal is generic over it, so the default

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::{
     Camera, ImageSettings, Material, MeshRef, Plane, PointLight, RenderMode, RenderSettings,
@@ -55,12 +55,13 @@ fn image_512() -> ImageSettings {
 
 /// Scene A (SPEC §3): three spheres over a mirror plane, shadows on, depth 2, one sample.
 pub fn spheres() -> Scene {
-    let v = Vec3::new;
+    let v = DVec3::new;
+    let c = Vec3::new;
     Scene {
         name: "spheres".into(),
         image: image_512(),
         camera: Camera {
-            eye: Vec3::ZERO,
+            eye: DVec3::ZERO,
             u: Vec3::X,
             v: Vec3::Y,
             w: Vec3::Z,
@@ -85,24 +86,24 @@ pub fn spheres() -> Scene {
             material("floor", Vec3::splat(0.2), Vec3::ONE, Vec3::ZERO, 0.0, 0.5),
             material(
                 "red",
-                v(0.2, 0.0, 0.0),
-                v(1.0, 0.0, 0.0),
+                c(0.2, 0.0, 0.0),
+                c(1.0, 0.0, 0.0),
                 Vec3::ZERO,
                 0.0,
                 0.0,
             ),
             material(
                 "green",
-                v(0.0, 0.2, 0.0),
-                v(0.0, 0.5, 0.0),
+                c(0.0, 0.2, 0.0),
+                c(0.0, 0.5, 0.0),
                 Vec3::splat(0.5),
                 32.0,
                 0.0,
             ),
             material(
                 "blue",
-                v(0.0, 0.0, 0.2),
-                v(0.0, 0.0, 1.0),
+                c(0.0, 0.0, 0.2),
+                c(0.0, 0.0, 1.0),
                 Vec3::ZERO,
                 0.0,
                 0.8,
@@ -145,7 +146,7 @@ pub fn sibenik(shadows: bool) -> Scene {
         .into(),
         image: image_512(),
         camera: Camera {
-            eye: Vec3::new(0.0, -10.0, 0.0),
+            eye: DVec3::new(0.0, -10.0, 0.0),
             u: Vec3::Z,
             v: Vec3::Y,
             w: Vec3::NEG_X,
@@ -163,7 +164,7 @@ pub fn sibenik(shadows: bool) -> Scene {
             robustness: Robustness::default(),
         },
         lights: vec![PointLight {
-            position: Vec3::ZERO,
+            position: DVec3::ZERO,
             intensity: Vec3::ONE,
         }],
         materials: vec![material(

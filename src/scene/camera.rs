@@ -1,14 +1,14 @@
 //! The pinhole camera of SPEC §1: eye, basis `u v w`, image window `l r b t` at distance `d`.
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use crate::queue::PixelIndex;
 
 /// A pinhole camera looking along `-w`.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Camera {
-    /// Eye position `e`.
-    pub eye: Vec3,
+    /// Eye position `e` (world coordinates, f64 as read): the origin of the render frame.
+    pub eye: DVec3,
     /// Right vector `u`.
     pub u: Vec3,
     /// Up vector `v`.
@@ -65,7 +65,7 @@ mod tests {
     #[test]
     fn centre_pixel_looks_along_minus_w() {
         let cam = Camera {
-            eye: Vec3::ZERO,
+            eye: DVec3::ZERO,
             u: Vec3::X,
             v: Vec3::Y,
             w: Vec3::Z,

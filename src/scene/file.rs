@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use serde::Deserialize;
 use toml::Spanned;
 
@@ -226,6 +226,13 @@ impl Cx<'_> {
         Ok(Vec3::from(out))
     }
 
+    /// A position in world coordinates, kept in f64 as written (the render frame is made from
+    /// it by [`crate::world::World`]).
+    fn position(&self, v: &V3, key: &str) -> Result<DVec3, SceneError> {
+        self.vec3(v, key)?; // the same checks: finite, within f32 range
+        Ok(DVec3::from_array(*v.get_ref()))
+    }
+
     fn direction(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
         let d = self.vec3(v, key)?;
         if d == Vec3::ZERO || !d.length_squared().is_finite() {
@@ -296,7 +303,7 @@ impl Cx<'_> {
         let mut lights = Vec::with_capacity(raw.light.len());
         for (i, l) in raw.light.iter().enumerate() {
             lights.push(PointLight {
-                position: self.vec3(&l.position, &format!("light[{i}].position"))?,
+                position: self.position(&l.position, &format!("light[{i}].position"))?,
                 intensity: self.colour(
                     l.intensity.as_ref(),
                     &format!("light[{i}].intensity"),
@@ -358,7 +365,7 @@ impl Cx<'_> {
         let mut planes = Vec::with_capacity(raw.plane.len());
         for (i, p) in raw.plane.iter().enumerate() {
             planes.push(Plane {
-                point: self.vec3(&p.point, &format!("plane[{i}].point"))?,
+                point: self.position(&p.point, &format!("plane[{i}].point"))?,
                 normal: self
                     .direction(&p.normal, &format!("plane[{i}].normal"))?
                     .normalize(),
@@ -374,7 +381,7 @@ impl Cx<'_> {
                 return Err(self.err(s.radius.span(), key, format!("{radius} must be > 0")));
             }
             spheres.push(Sphere {
-                center: self.vec3(&s.center, &format!("sphere[{i}].center"))?,
+                center: self.position(&s.center, &format!("sphere[{i}].center"))?,
                 radius,
                 material: find(&s.material, format!("sphere[{i}].material"))?,
             });
@@ -440,7 +447,7 @@ impl Cx<'_> {
     fn camera(&self, raw: &RawCamera) -> Result<Camera, SceneError> {
         let win = raw.window.get_ref();
         let cam = Camera {
-            eye: self.vec3(&raw.eye, "camera.eye")?,
+            eye: self.position(&raw.eye, "camera.eye")?,
             u: self.direction(&raw.u, "camera.u")?,
             v: self.direction(&raw.v, "camera.v")?,
             w: self.direction(&raw.w, "camera.w")?,
@@ -490,7 +497,9 @@ impl Cx<'_> {
                 o,
                 "render.offset",
                 &[
-                    ("scale-aware", OffsetMethod::ScaleAware),
+                    ("error-bound", OffsetMethod::ErrorBound),
+                    // The name before error bounds replaced ulp counts; same meaning: the robust one.
+                    ("scale-aware", OffsetMethod::ErrorBound),
                     ("fixed-epsilon", OffsetMethod::FixedEpsilon),
                 ],
             )?;

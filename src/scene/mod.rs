@@ -1,8 +1,9 @@
 //! The scene description: image, camera, render settings, lights, materials and primitives.
 //!
-//! A [`Scene`] is pure data, as read from a TOML file ([`file`]) or built in ([`builtin`]). Meshes
-//! are referred to by path; [`crate::world::World`] loads them and builds the acceleration
-//! structure.
+//! A [`Scene`] is pure data, as read from a TOML file ([`file`]) or built in ([`builtin`]), in world
+//! coordinates: positions (eye, lights, sphere centres, plane points) are kept in f64 as read.
+//! Meshes are referred to by path; [`crate::world::World`] loads them, moves everything into the
+//! camera-relative f32 render frame and builds the acceleration structure.
 
 pub mod builtin;
 pub mod camera;
@@ -11,7 +12,7 @@ pub mod overrides;
 
 use std::path::PathBuf;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 pub use camera::Camera;
 
@@ -42,9 +43,9 @@ pub enum RenderMode {
 /// How secondary-ray origins are moved off the surface they leave.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OffsetMethod {
-    /// Scale-aware offset along the normal in units of the hit point's ulp (Wächter & Binder,
-    /// Ray Tracing Gems ch. 6). The default.
-    ScaleAware,
+    /// Along the geometric normal by the hit point's conservative error bound (PBR 4th ed.
+    /// §6.8): correct at coordinate 0 and at any magnitude. The default.
+    ErrorBound,
     /// A fixed world-space epsilon of 1e-4 along the normal: the naive method, kept only so the
     /// error report can show where it breaks.
     FixedEpsilon,
@@ -82,7 +83,7 @@ pub struct Robustness {
 impl Default for Robustness {
     fn default() -> Self {
         Self {
-            offset: OffsetMethod::ScaleAware,
+            offset: OffsetMethod::ErrorBound,
             sphere: SphereTest::Stable,
             triangle: TriangleTest::Watertight,
         }
@@ -107,8 +108,8 @@ pub struct RenderSettings {
 /// A point light without falloff.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PointLight {
-    /// Position `q`.
-    pub position: Vec3,
+    /// Position `q` (world coordinates, f64 as read).
+    pub position: DVec3,
     /// Intensity `I` per channel.
     pub intensity: Vec3,
 }
@@ -145,8 +146,8 @@ impl Material {
 /// A sphere.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Sphere {
-    /// Centre.
-    pub center: Vec3,
+    /// Centre (world coordinates, f64 as read).
+    pub center: DVec3,
     /// Radius (> 0).
     pub radius: f32,
     /// Index into [`Scene::materials`].
@@ -156,8 +157,8 @@ pub struct Sphere {
 /// An infinite plane.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Plane {
-    /// Any point on the plane.
-    pub point: Vec3,
+    /// Any point on the plane (world coordinates, f64 as read).
+    pub point: DVec3,
     /// Unit normal (shading flips it to face the ray).
     pub normal: Vec3,
     /// Index into [`Scene::materials`].

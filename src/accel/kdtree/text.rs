@@ -18,6 +18,7 @@ use thiserror::Error;
 
 use super::overlap::Aabb;
 use super::{KdNode, KdTree, MAX_DEPTH, node::MAX_PACKED, split_box};
+use crate::frame::RenderFrame;
 
 /// Errors from reading a tree file. Messages are lowercase and start with `path:line:`.
 #[derive(Debug, Error)]
@@ -147,9 +148,22 @@ impl KdTree {
     /// `source` names the file in errors. Validates syntax, numbers, axes, child and triangle
     /// indices, cycles, nodes reachable twice, unreachable nodes and depth. Never panics.
     pub fn read_text(
+        reader: impl BufRead,
+        source: &Path,
+        triangle_count: usize,
+    ) -> Result<KdTree, TreeError> {
+        KdTree::read_text_in(reader, source, triangle_count, &RenderFrame::default())
+    }
+
+    /// [`KdTree::read_text`] for a mesh in the render frame `frame`: the file holds world
+    /// coordinates; each box coordinate and split is parsed in f64 and moved into the frame
+    /// (`x − eye`, rounded once to f32), as the mesh's vertices are, so the tree and the mesh
+    /// stay consistent (both roundings are monotonic).
+    pub fn read_text_in(
         mut reader: impl BufRead,
         source: &Path,
         triangle_count: usize,
+        frame: &RenderFrame,
     ) -> Result<KdTree, TreeError> {
         let path = || source.to_path_buf();
         let mut parsed: Vec<Parsed> = Vec::new();
@@ -186,7 +200,7 @@ impl KdTree {
                     message: "blank line between nodes".to_string(),
                 });
             }
-            let (bx, node) = parse_line(text, line_no, source, triangle_count)?;
+            let (bx, node) = parse_line(text, line_no, source, triangle_count, frame)?;
             if parsed.is_empty() {
                 root = bx;
             }
@@ -306,17 +320,33 @@ impl KdTree {
 
     /// Opens and reads a tree file (see [`KdTree::read_text`]).
     pub fn load_text(path: &Path, triangle_count: usize) -> Result<KdTree, TreeError> {
+        KdTree::load_text_in(path, triangle_count, &RenderFrame::default())
+    }
+
+    /// Opens and reads a tree file into the render frame `frame` (see [`KdTree::read_text_in`]).
+    pub fn load_text_in(
+        path: &Path,
+        triangle_count: usize,
+        frame: &RenderFrame,
+    ) -> Result<KdTree, TreeError> {
         let file = std::fs::File::open(path).map_err(|source| TreeError::Io {
             path: path.to_path_buf(),
             source,
         })?;
-        KdTree::read_text(std::io::BufReader::new(file), path, triangle_count)
+        KdTree::read_text_in(std::io::BufReader::new(file), path, triangle_count, frame)
     }
 
     /// Writes the tree in the SPEC §6 format (pre-order, so every left child is the next line).
     /// Boxes are derived from the root box and the split planes; floats use the shortest
     /// representation that parses back bit-identical.
     pub fn write_text(&self, w: impl Write) -> std::io::Result<()> {
+        self.write_text_in(w, &RenderFrame::default())
+    }
+
+    /// [`KdTree::write_text`] for a tree in the render frame `frame`: writes world coordinates
+    /// (`x + eye` in f64), which [`KdTree::read_text_in`] with the same frame reads back exactly.
+    pub fn write_text_in(&self, w: impl Write, frame: &RenderFrame) -> std::io::Result<()> {
+        let world = |axis: usize, x: f32| WorldCoordinate(frame.world_coordinate(axis, x));
         let mut w = std::io::BufWriter::new(w);
         let mut stack: Vec<(usize, Aabb)> = vec![(0, self.root)];
         let mut boxes = vec![self.root; self.nodes.len()];
@@ -336,18 +366,39 @@ impl KdTree {
             write!(
                 w,
                 "{head}{{ {} {} {} {} {} {} ;",
-                lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+                world(0, lo[0]),
+                world(1, lo[1]),
+                world(2, lo[2]),
+                world(0, hi[0]),
+                world(1, hi[1]),
+                world(2, hi[2])
             )?;
             if n.is_leaf() {
                 for t in self.leaf_triangles(i) {
                     write!(w, " {t}")?;
                 }
             } else {
-                write!(w, " {} {} {} {}", i + 1, n.right(), n.axis(), n.split())?;
+                let split = world(n.axis(), n.split());
+                write!(w, " {} {} {} {split}", i + 1, n.right(), n.axis())?;
             }
             writeln!(w, " }}")?;
         }
         w.flush()
+    }
+}
+
+/// A world coordinate printed as the shortest f32 that reads back exactly when it is one (every
+/// coordinate of a tree in the world's own frame), else as the shortest f64.
+struct WorldCoordinate(f64);
+
+impl std::fmt::Display for WorldCoordinate {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let x = self.0;
+        if f64::from(x as f32) == x {
+            write!(f, "{}", x as f32)
+        } else {
+            write!(f, "{x}")
+        }
     }
 }
 
@@ -356,6 +407,7 @@ fn parse_line(
     line: usize,
     source: &Path,
     triangle_count: usize,
+    frame: &RenderFrame,
 ) -> Result<(Aabb, Parsed), TreeError> {
     let malformed = |message: &str| TreeError::Malformed {
         path: source.to_path_buf(),
@@ -377,12 +429,14 @@ fn parse_line(
     let (box_part, tail) = body
         .split_once(';')
         .ok_or_else(|| malformed("expected `;` after the box"))?;
-    let float = |tok: &str| -> Result<f32, TreeError> {
-        let x: f32 = tok
+    // World coordinate along `axis`, parsed in f64, checked, moved into the frame.
+    let float = |tok: &str, axis: usize| -> Result<f32, TreeError> {
+        let x: f64 = tok
             .parse()
             .map_err(|_| malformed(&format!("bad number `{tok}`")))?;
-        if x.is_finite() {
-            Ok(x)
+        let in_frame = frame.coordinate(axis, x);
+        if (x as f32).is_finite() && in_frame.is_finite() {
+            Ok(in_frame)
         } else {
             Err(TreeError::NonFinite {
                 path: source.to_path_buf(),
@@ -400,7 +454,7 @@ fn parse_line(
     }
     let mut b = [0.0f32; 6];
     for (k, tok) in coords.iter().enumerate() {
-        b[k] = float(tok)?;
+        b[k] = float(tok, k % 3)?;
     }
     let bx: Aabb = ([b[0], b[1], b[2]], [b[3], b[4], b[5]]);
     let toks: Vec<&str> = tail.split_whitespace().collect();
@@ -433,7 +487,6 @@ fn parse_line(
         let left = uint(toks[0])?;
         let right = uint(toks[1])?;
         let axis = uint(toks[2])?;
-        let split = float(toks[3])?;
         if axis > 2 {
             return Err(TreeError::BadAxis {
                 path: source.to_path_buf(),
@@ -441,6 +494,7 @@ fn parse_line(
                 axis,
             });
         }
+        let split = float(toks[3], axis as usize)?;
         let clamp = |x: u64| usize::try_from(x).unwrap_or(usize::MAX);
         Ok((
             bx,

@@ -9,7 +9,8 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
-use wavefront::mesh::TriangleMesh;
+use wavefront::frame::RenderFrame;
+use wavefront::mesh::{ObjMesh, TriangleMesh};
 use wavefront::scene::overrides::Overrides;
 use wavefront::{Pipeline, RenderOptions, Scene, World, load_scene, render};
 
@@ -366,11 +367,15 @@ impl Progress {
     }
 }
 
-fn load_mesh(path: &Path) -> Result<TriangleMesh> {
+/// Reads an OBJ mesh in f64 and moves it into the frame centred on its bounds, where a tree is
+/// built with the most precision; tree files still hold world coordinates.
+fn load_mesh(path: &Path) -> Result<(TriangleMesh, RenderFrame)> {
     if !path.exists() {
         return Err(wavefront::scene::builtin::missing_mesh(path).into());
     }
-    Ok(TriangleMesh::load_obj(path)?)
+    let obj = ObjMesh::read(path)?;
+    let frame = RenderFrame::centered_on(&obj);
+    Ok((obj.to_frame(frame.origin)?, frame))
 }
 
 fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
@@ -380,7 +385,7 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             method,
             output,
         } => {
-            let m = load_mesh(&mesh)?;
+            let (m, frame) = load_mesh(&mesh)?;
             let start = Instant::now();
             let method = match method {
                 Method::Sah => BuildMethod::Sah,
@@ -389,7 +394,7 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             let tree = KdTree::build(&m, method);
             let build = start.elapsed();
             let mut text = Vec::new();
-            tree.write_text(&mut text)
+            tree.write_text_in(&mut text, &frame)
                 .context("cannot format the tree")?;
             wavefront::film::write_atomically(&output, &text)
                 .with_context(|| format!("cannot write {}", output.display()))?;
@@ -402,8 +407,8 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             Ok(())
         }
         KdtreeCommand::Check { tree, mesh } => {
-            let m = load_mesh(&mesh)?;
-            let t = KdTree::load_text(&tree, m.len())?;
+            let (m, frame) = load_mesh(&mesh)?;
+            let t = KdTree::load_text_in(&tree, m.len(), &frame)?;
             t.validate(&m)
                 .map_err(|e| anyhow::anyhow!("{}: invalid tree: {e}", tree.display()))?;
             println!("{}: valid", tree.display());

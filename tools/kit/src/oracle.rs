@@ -2,7 +2,7 @@
 //!
 //! Written straight from SPEC §1–§5 to check the wavefront pipeline against, so it shares no
 //! intersection, shading, offset or acceleration code with it. It reads the [`Scene`] description,
-//! the loaded vertex and index arrays of a [`TriangleMesh`], and takes sample positions from
+//! the f64 vertex and index arrays of an [`ObjMesh`] (world coordinates as written), and takes sample positions from
 //! [`sample_offset`] so multi-sample images use the same sample points. Everything else is here:
 //! ray/sphere, ray/plane and ray/triangle tests, a small median-split BVH over the triangles,
 //! Blinn-Phong shading, shadow rays and mirror reflections.
@@ -14,7 +14,7 @@ use std::fmt;
 use glam::DVec3;
 use rayon::prelude::*;
 
-use wavefront::mesh::TriangleMesh;
+use wavefront::mesh::ObjMesh;
 use wavefront::sampling::sample_offset;
 use wavefront::scene::{RenderMode, Scene};
 
@@ -119,10 +119,10 @@ pub fn compare_rgb8(a: &[u8], b: &[u8]) -> ImageDiff {
     diff
 }
 
-/// Renders `scene` with the oracle. `mesh` holds the triangles of the scene's mesh (all of them
-/// get the first mesh's material); without it the scene's meshes are ignored.
-pub fn render_oracle(scene: &Scene, mesh: Option<&TriangleMesh>) -> OracleImage {
-    let oracle = Oracle::new(scene, mesh);
+/// Renders `scene` with the oracle. `meshes[i]` holds the triangles of `scene.meshes[i]` (read
+/// with [`ObjMesh::read`]), which get that mesh's material; meshes not given are ignored.
+pub fn render_oracle(scene: &Scene, meshes: &[ObjMesh]) -> OracleImage {
+    let oracle = Oracle::new(scene, meshes);
     let (w, h) = (scene.image.width, scene.image.height);
     let pixels = (0..h)
         .into_par_iter()
@@ -161,15 +161,18 @@ struct Oracle<'a> {
     spheres: Vec<(DVec3, f64, usize)>,
     planes: Vec<(DVec3, DVec3, usize)>,
     triangles: Vec<[DVec3; 3]>,
-    mesh_material: usize,
+    /// Material of each triangle.
+    triangle_material: Vec<usize>,
     bvh: Bvh,
 }
 
-/// Relative epsilon for secondary-ray origins: `p + EPS·max(1, |p|)·n`.
+/// Relative epsilon for secondary-ray origins: `p + EPS·max(1, |p − eye|, 10⁻⁶·|p|)·n` — relative
+/// to the distance from the eye, so a scene moved far from the world's origin is traced as at
+/// home, and never below f64's own rounding of `p` (≈ 10⁻¹⁶·|p|).
 const EPS: f64 = 1e-9;
 
 impl<'a> Oracle<'a> {
-    fn new(scene: &'a Scene, mesh: Option<&TriangleMesh>) -> Self {
+    fn new(scene: &'a Scene, meshes: &[ObjMesh]) -> Self {
         let materials = scene
             .materials
             .iter()
@@ -184,28 +187,26 @@ impl<'a> Oracle<'a> {
         let spheres = scene
             .spheres
             .iter()
-            .map(|s| {
-                (
-                    s.center.as_dvec3(),
-                    f64::from(s.radius),
-                    s.material as usize,
-                )
-            })
+            .map(|s| (s.center, f64::from(s.radius), s.material as usize))
             .collect();
         let planes = scene
             .planes
             .iter()
             .map(|p| {
                 let n = p.normal.as_dvec3().normalize();
-                (p.point.as_dvec3(), n, p.material as usize)
+                (p.point, n, p.material as usize)
             })
             .collect();
-        let triangles: Vec<[DVec3; 3]> = mesh.map_or_else(Vec::new, |m| {
-            m.indices
-                .iter()
-                .map(|t| t.map(|i| DVec3::from(m.vertices[i as usize].map(f64::from))))
-                .collect()
-        });
+        let mut triangles: Vec<[DVec3; 3]> = vec![];
+        let mut triangle_material = vec![];
+        for (m, r) in meshes.iter().zip(&scene.meshes) {
+            triangles.extend(
+                m.indices
+                    .iter()
+                    .map(|t| t.map(|i| DVec3::from(m.positions[i as usize]))),
+            );
+            triangle_material.resize(triangles.len(), r.material as usize);
+        }
         let bvh = Bvh::build(&triangles);
         Oracle {
             scene,
@@ -213,7 +214,7 @@ impl<'a> Oracle<'a> {
             spheres,
             planes,
             triangles,
-            mesh_material: scene.meshes.first().map_or(0, |m| m.material as usize),
+            triangle_material,
             bvh,
         }
     }
@@ -244,7 +245,7 @@ impl<'a> Oracle<'a> {
     }
 
     fn eye(&self) -> DVec3 {
-        self.scene.camera.eye.as_dvec3()
+        self.scene.camera.eye
     }
 
     /// SPEC §1: `us·u + vs·v − d·w` through image-plane point `(x, y)` in pixel units, normalised.
@@ -277,12 +278,13 @@ impl<'a> Oracle<'a> {
         };
         let m = self.materials[hit.material];
         let view = -d;
-        let off = p + EPS * p.length().max(1.0) * n;
+        let scale = (p - self.eye()).length().max(1.0).max(1e-6 * p.length());
+        let off = p + EPS * scale * n;
         let render = &self.scene.render;
 
         let mut local = m.ka * render.ambient.as_dvec3();
         for light in &self.scene.lights {
-            let q = light.position.as_dvec3();
+            let q = light.position;
             let intensity = light.intensity.as_dvec3();
             let to_light = q - p;
             let dist = to_light.length();
@@ -347,7 +349,7 @@ impl<'a> Oracle<'a> {
             best = Some(Hit {
                 t,
                 normal: (b - a).cross(c - a).normalize(),
-                material: self.mesh_material,
+                material: self.triangle_material[k],
             });
         }
         best
@@ -608,7 +610,7 @@ mod tests {
     #[test]
     fn central_ray_hits_the_green_sphere_at_its_front_pole() {
         let scene = one_pixel_scene();
-        let o = Oracle::new(&scene, None);
+        let o = Oracle::new(&scene, &[]);
         let d = o.primary_direction(0.5, 0.5);
         assert_eq!(d, DVec3::new(0.0, 0.0, -1.0));
         let hit = o.closest(DVec3::ZERO, d, f64::INFINITY).unwrap();
@@ -620,7 +622,7 @@ mod tests {
     #[test]
     fn green_pole_has_hand_computed_blinn_phong_colour() {
         let scene = one_pixel_scene();
-        let img = render_oracle(&scene, None);
+        let img = render_oracle(&scene, &[]);
         // p = (0, 0, -5), n = +z, v = +z, light (-4, 4, -3): l = (-4, 4, 2)/6.
         let l = DVec3::new(-4.0, 4.0, 2.0) / 6.0;
         let h = (l + DVec3::Z).normalize();
@@ -639,7 +641,7 @@ mod tests {
     #[test]
     fn floor_point_in_the_red_spheres_shadow_keeps_only_ambient() {
         let scene = spheres();
-        let o = Oracle::new(&scene, None);
+        let o = Oracle::new(&scene, &[]);
         // The light (-4, 4, -3) through the red sphere's centre (-4, 0, -7) meets the floor at
         // (-4, -2, -9): in shadow.
         let p = DVec3::new(-4.0, -2.0, -9.0);
@@ -648,7 +650,7 @@ mod tests {
         assert!((with - DVec3::splat(0.5 * 0.2)).length() < 1e-7, "{with}");
         let mut lit = scene.clone();
         lit.render.shadows = false;
-        let o = Oracle::new(&lit, None);
+        let o = Oracle::new(&lit, &[]);
         let l = (DVec3::new(-4.0, 4.0, -3.0) - p).normalize();
         let without = o.trace(DVec3::ZERO, d, lit.render.max_depth);
         assert!((without - DVec3::splat(0.5 * (0.2 + l.y))).length() < 1e-7);
@@ -658,7 +660,7 @@ mod tests {
     fn reflection_stops_at_max_depth_and_keeps_local_shading() {
         let mut scene = spheres();
         scene.render.shadows = false;
-        let o = Oracle::new(&scene, None);
+        let o = Oracle::new(&scene, &[]);
         let d = DVec3::new(0.0, -1.0, -1.0).normalize(); // floor at (0, -2, -2), mirrored upward
         let at_limit = o.trace(DVec3::ZERO, d, scene.render.max_depth);
         let p = DVec3::new(0.0, -2.0, -2.0);
@@ -680,11 +682,12 @@ mod tests {
             material: 0,
             kdtree: wavefront::scene::TreeSource::Sah,
         }];
-        let mesh = TriangleMesh {
-            vertices: vec![[-1.0, -1.0, -3.0], [1.0, -1.0, -3.0], [0.0, 1.0, -3.0]],
+        let mesh = ObjMesh {
+            positions: vec![[-1.0, -1.0, -3.0], [1.0, -1.0, -3.0], [0.0, 1.0, -3.0]],
             indices: vec![[0, 1, 2]],
+            ..ObjMesh::default()
         };
-        let o = Oracle::new(&scene, Some(&mesh));
+        let o = Oracle::new(&scene, &[mesh]);
         let front = o.closest(DVec3::ZERO, DVec3::NEG_Z, f64::INFINITY).unwrap();
         assert!((front.t - 3.0).abs() < 1e-12);
         let back = o
@@ -727,7 +730,7 @@ mod tests {
         scene.render.mode = RenderMode::HitMask;
         scene.image.width = 8;
         scene.image.height = 8;
-        let img = render_oracle(&scene, None);
+        let img = render_oracle(&scene, &[]);
         assert_eq!(img.pixels[0], DVec3::ZERO, "top-left corner sees the sky");
         assert_eq!(
             img.pixels[63],

@@ -17,10 +17,10 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{Context, Result};
-use glam::Vec3;
+use glam::DVec3;
 
 use crate::oracle::{ImageDiff, compare_rgb8, render_oracle};
-use wavefront::mesh::TriangleMesh;
+use wavefront::mesh::ObjMesh;
 use wavefront::scene::builtin::{sibenik, sibenik_mesh_path};
 use wavefront::scene::{OffsetMethod, Robustness, Scene, SphereTest, TreeSource, TriangleTest};
 use wavefront::{RenderOptions, World, render};
@@ -98,12 +98,21 @@ fn timed_render(scene: &Scene, world: &World, runs: usize) -> (Vec<u8>, f64) {
     (image, times[times.len() / 2])
 }
 
-fn oracle_rgb8(scene: &Scene, mesh: Option<&TriangleMesh>) -> Vec<u8> {
-    render_oracle(scene, mesh).to_rgb8(scene.image.gamma as f64)
+/// The scene's meshes in f64 world coordinates, for the oracle.
+fn oracle_meshes(scene: &Scene) -> Result<Vec<ObjMesh>> {
+    scene
+        .meshes
+        .iter()
+        .map(|m| ObjMesh::read(&m.path).context("cannot load the oracle's mesh"))
+        .collect()
+}
+
+fn oracle_rgb8(scene: &Scene, meshes: &[ObjMesh]) -> Vec<u8> {
+    render_oracle(scene, meshes).to_rgb8(scene.image.gamma as f64)
 }
 
 /// Moves every position of the scene by `delta` (camera, lights, primitives; not meshes).
-pub fn translated(scene: &Scene, delta: Vec3) -> Scene {
+pub fn translated(scene: &Scene, delta: DVec3) -> Scene {
     let mut s = scene.clone();
     s.name = format!("{} moved by {delta}", scene.name);
     s.camera.eye += delta;
@@ -153,7 +162,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
     let mut report = Report::default();
     let base = &settings.scene;
     let world = World::load(base).context("cannot load the report scene")?;
-    let mesh = world.triangles().map(|t| t.mesh());
+    let meshes = oracle_meshes(base)?;
     let label = base.name.clone();
 
     // Convergence: the sweep against a many-sample f64 reference.
@@ -163,7 +172,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
     ));
     let mut reference_scene = base.clone();
     reference_scene.image.samples = settings.reference_samples;
-    let reference = oracle_rgb8(&reference_scene, mesh);
+    let reference = oracle_rgb8(&reference_scene, &meshes);
     for &spp in &settings.sweep {
         let mut s = base.clone();
         s.image.samples = spp;
@@ -192,7 +201,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
     }
     scenes.push((
         format!("{label} at 1e4"),
-        translated(base, Vec3::splat(1e4)),
+        translated(base, DVec3::splat(1e4)),
     ));
 
     // Each scene is loaded once and its oracle reference rendered once; the variants only switch
@@ -203,7 +212,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
         let mut s = scene.clone();
         s.image.samples = 1;
         let mut world = World::load(&s)?;
-        let reference = oracle_rgb8(&s, world.triangles().map(|t| t.mesh()));
+        let reference = oracle_rgb8(&s, &oracle_meshes(&s)?);
         for (variant, robustness) in variants() {
             let relevant = match robustness {
                 r if r == Robustness::default() => true,

@@ -31,13 +31,17 @@ pub fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
         .install(f)
 }
 
-/// The oracle's render of `scene` (its mesh, if any, loaded by the project's OBJ reader).
+/// The oracle's render of `scene`, its meshes read in f64 as written.
 pub fn oracle_image(scene: &Scene) -> OracleImage {
-    let mesh = scene.meshes.first().map(|m| {
-        wavefront::mesh::TriangleMesh::load_obj(&m.path)
-            .unwrap_or_else(|e| panic!("cannot load {}: {e}", m.path.display()))
-    });
-    render_oracle(scene, mesh.as_ref())
+    let meshes: Vec<_> = scene
+        .meshes
+        .iter()
+        .map(|m| {
+            wavefront::mesh::ObjMesh::read(&m.path)
+                .unwrap_or_else(|e| panic!("cannot load {}: {e}", m.path.display()))
+        })
+        .collect();
+    render_oracle(scene, &meshes)
 }
 
 /// The oracle's 8-bit RGB render of `scene`.
