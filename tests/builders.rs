@@ -13,13 +13,7 @@ fn render_with(tree: TreeSource, threads: usize, mesh: &std::path::Path) -> Vec<
     let mut scene = sibenik(true);
     scene.meshes[0].path = mesh.to_path_buf(); // resolved by the test kit
     scene.meshes[0].kdtree = tree;
-    scene.image.width = 128;
-    scene.image.height = 128;
-    // A quarter of the window, off-centre so walls, floor and shadow edges are all in view.
-    scene.camera.l = -0.06;
-    scene.camera.r = -0.01;
-    scene.camera.b = -0.06;
-    scene.camera.t = -0.01;
+    wavefront_kit::testkit::sibenik_crop(&mut scene, 128);
     wavefront_kit::testkit::in_pool(threads, || wavefront_kit::testkit::render_png_bytes(&scene))
 }
 

@@ -11,7 +11,9 @@ use glam::{DVec3, Vec3};
 use wavefront::scene::builtin::spheres;
 use wavefront::scene::{Camera, Material, MeshRef, Plane, PointLight, Scene, Sphere, TreeSource};
 use wavefront_kit::oracle::{ImageDiff, compare_rgb8};
-use wavefront_kit::testkit::{oracle_png_bytes, reference_error, render_png_bytes, sibenik_mesh};
+use wavefront_kit::testkit::{
+    oracle_png_bytes, reference_error, render_png_bytes, sibenik_crop, sibenik_mesh,
+};
 
 /// A scratch directory for generated OBJ files, removed on drop.
 struct Scratch(PathBuf);
@@ -79,23 +81,6 @@ fn empty_scene(size: u32) -> Scene {
     s.spheres.clear();
     s.planes.clear();
     s.render.max_depth = 0;
-    s
-}
-
-/// Moves every position of `scene` by `delta` (eye, lights, spheres, planes; meshes are written
-/// moved by their generators).
-fn moved(scene: &Scene, delta: DVec3) -> Scene {
-    let mut s = scene.clone();
-    s.camera.eye += delta;
-    for l in &mut s.lights {
-        l.position += delta;
-    }
-    for sp in &mut s.spheres {
-        sp.center += delta;
-    }
-    for p in &mut s.planes {
-        p.point += delta;
-    }
     s
 }
 
@@ -228,17 +213,14 @@ fn scene_a_moved_by_every_power_of_ten_renders_as_at_home() {
     base.image.height = 128;
     let home = render_png_bytes(&base);
     for k in 1..=6 {
-        let scene = moved(
-            &base,
-            DVec3::new(10f64.powi(k), -(10f64.powi(k)), 10f64.powi(k)),
-        );
+        let scene = base.translated(DVec3::new(10f64.powi(k), -(10f64.powi(k)), 10f64.powi(k)));
         let image = render_png_bytes(&scene);
         let e = mae(&image, &home);
         println!("scene A moved by 1e{k}: MAE {e:.4}");
         assert!(e <= 0.5, "scene A moved by 1e{k}: MAE {e}");
     }
     // The oracle agrees at the far end, too.
-    let far = moved(&base, DVec3::splat(1e6));
+    let far = base.translated(DVec3::splat(1e6));
     let (d, _) = against_oracle(&far);
     assert!(d.over_1 * 1000 <= d.pixels, "scene A at 1e6 vs oracle: {d}");
 }
@@ -307,7 +289,7 @@ fn surfaces_on_the_coordinate_planes_match_the_oracle() {
     let (d, _) = against_oracle(&scene);
     println!("coordinate planes vs oracle: {d}");
     assert!(d.over_3 * 500 <= d.pixels, "{d}");
-    let far = moved(&scene, DVec3::splat(1e6));
+    let far = scene.translated(DVec3::splat(1e6));
     let (d, _) = against_oracle(&far);
     println!("coordinate planes moved by 1e6 vs oracle: {d}");
     assert!(d.over_3 * 500 <= d.pixels, "{d}");
@@ -383,18 +365,9 @@ fn a_sibenik_crop_moved_by_every_power_of_ten_renders_as_at_home() {
     };
     let dir = Scratch::new("sibenik");
     let obj = wavefront::mesh::ObjMesh::read(&path).unwrap();
-    // A 64 × 64 crop of the shadowed view around walls, floor and shadow edges.
-    let crop = |scene: &mut Scene| {
-        scene.image.width = 64;
-        scene.image.height = 64;
-        scene.camera.l = -0.06;
-        scene.camera.r = -0.01;
-        scene.camera.b = -0.06;
-        scene.camera.t = -0.01;
-    };
     let mut home = wavefront::scene::builtin::sibenik(true);
     home.meshes[0].path = path.clone();
-    crop(&mut home);
+    sibenik_crop(&mut home, 64);
     let home_image = render_png_bytes(&home);
     for k in 1..=6 {
         let delta = DVec3::splat(10f64.powi(k));
@@ -408,7 +381,7 @@ fn a_sibenik_crop_moved_by_every_power_of_ten_renders_as_at_home() {
         }
         let file = dir.path("moved.obj");
         std::fs::write(&file, text).unwrap();
-        let mut scene = moved(&home, delta);
+        let mut scene = home.translated(delta);
         scene.meshes[0].path = file;
         let e = mae(&render_png_bytes(&scene), &home_image);
         println!("sibenik crop moved by 1e{k}: MAE {e:.4}");

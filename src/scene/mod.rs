@@ -223,6 +223,24 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// The scene with every position moved by `delta` (eye, lights, sphere centres, plane points;
+    /// mesh files are not rewritten), in f64.
+    pub fn translated(&self, delta: DVec3) -> Scene {
+        let mut s = self.clone();
+        s.name = format!("{} moved by {delta}", self.name);
+        s.camera.eye += delta;
+        for l in &mut s.lights {
+            l.position += delta;
+        }
+        for sp in &mut s.spheres {
+            sp.center += delta;
+        }
+        for p in &mut s.planes {
+            p.point += delta;
+        }
+        s
+    }
+
     /// True when some material reflects and the depth limit allows a reflection.
     pub fn needs_reflections(&self) -> bool {
         self.render.mode == RenderMode::Shaded

@@ -111,23 +111,6 @@ fn oracle_rgb8(scene: &Scene, meshes: &[ObjMesh]) -> Vec<u8> {
     render_oracle(scene, meshes).to_rgb8(scene.image.gamma as f64)
 }
 
-/// Moves every position of the scene by `delta` (camera, lights, primitives; not meshes).
-pub fn translated(scene: &Scene, delta: DVec3) -> Scene {
-    let mut s = scene.clone();
-    s.name = format!("{} moved by {delta}", scene.name);
-    s.camera.eye += delta;
-    for l in &mut s.lights {
-        l.position += delta;
-    }
-    for sp in &mut s.spheres {
-        sp.center += delta;
-    }
-    for p in &mut s.planes {
-        p.point += delta;
-    }
-    s
-}
-
 /// The numerical variants compared in the robustness group.
 fn variants() -> Vec<(&'static str, Robustness)> {
     let robust = Robustness::default();
@@ -201,7 +184,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
     }
     scenes.push((
         format!("{label} at 1e4"),
-        translated(base, DVec3::splat(1e4)),
+        base.translated(DVec3::splat(1e4)),
     ));
 
     // Each scene is loaded once and its oracle reference rendered once; the variants only switch
