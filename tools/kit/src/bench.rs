@@ -355,8 +355,9 @@ impl Record {
 pub struct Timing {
     /// Scene name.
     pub scene: String,
-    /// What was timed: `frame` (median of R renders), `load_obj`, `tree` (as loaded),
-    /// `build_sah` (best of R), `embree_build` (best of R).
+    /// What was timed: `frame` (median of R renders), `baseline_recursive` (the recursive f32
+    /// tracer of [`crate::baseline`] on the same scene and pool, median of R), `load_obj`, `tree`
+    /// (as loaded), `build_sah` (best of R), `embree_build` (best of R).
     pub timing: String,
     /// Worker threads.
     pub threads: usize,
@@ -521,6 +522,15 @@ impl fmt::Display for Report {
                 t.seconds * 1e3,
                 t.runs
             )?;
+            if let Some(b) = self.timing("baseline_recursive") {
+                writeln!(
+                    f,
+                    "recursive baseline: {:.2} ms (median of {}); wavefront speed-up over it: {:.2}x",
+                    b.seconds * 1e3,
+                    b.runs,
+                    b.seconds / t.seconds
+                )?;
+            }
         }
         if let Some(t) = &self.traffic {
             writeln!(
@@ -654,6 +664,16 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     report
         .timings
         .push(timing(scene, "frame", threads, frame, repeat));
+    let baseline = median_of(repeat, || {
+        std::hint::black_box(crate::baseline::render_recursive(scene, &world));
+    });
+    report.timings.push(timing(
+        scene,
+        "baseline_recursive",
+        threads,
+        baseline,
+        repeat,
+    ));
     if world.triangles().is_some() {
         report
             .timings
