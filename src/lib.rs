@@ -30,10 +30,12 @@ pub mod film;
 pub mod geometry;
 pub mod mesh;
 pub mod queue;
+pub mod region;
 pub mod sampling;
 pub mod scene;
 pub mod schedule;
 pub mod stats;
+pub mod tile;
 pub mod wave;
 pub mod world;
 

@@ -6,7 +6,9 @@
 
 pub mod builtin;
 pub mod camera;
+pub mod camera_path;
 pub mod file;
+pub mod lookat;
 pub mod overrides;
 
 use std::path::PathBuf;
@@ -14,6 +16,7 @@ use std::path::PathBuf;
 use glam::Vec3;
 
 pub use camera::Camera;
+pub use camera_path::CameraPath;
 
 /// Image size, sampling and output transfer curve (`[image]`).
 #[derive(Clone, Debug, PartialEq)]
@@ -205,8 +208,10 @@ pub struct Scene {
     pub name: String,
     /// Image settings.
     pub image: ImageSettings,
-    /// Camera.
+    /// Camera (with a camera path: the first key's, or the frame's after [`Scene::at_frame`]).
     pub camera: Camera,
+    /// Look-at keys of an animated camera (`[[camera.key]]`), if any.
+    pub camera_path: Option<CameraPath>,
     /// Render settings.
     pub render: RenderSettings,
     /// Point lights.
