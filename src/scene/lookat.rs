@@ -65,7 +65,8 @@ impl LookAt {
         let w = back / len;
         let side = self.up.cross(w);
         let up_len = self.up.length();
-        if up_len == 0.0 || !(side.length() > MIN_UP_SINE * up_len) {
+        let sine = side.length() / up_len; // NaN for a zero `up`
+        if sine.is_nan() || sine <= MIN_UP_SINE {
             return Err(LookAtError::UpParallel);
         }
         let u = side.normalize();

@@ -218,7 +218,7 @@ impl SlurmPlan {
                     "exec {exe} render {scene} --tile {n} \"${{threads[@]}}\" \
                      -o {tile}\"$task\".png"
                 );
-                merge = Some(self.merge_script(*n, &[self.output.clone()]));
+                merge = Some(self.merge_script(*n, std::slice::from_ref(&self.output)));
             }
             Work::Tiles {
                 n,
