@@ -2,7 +2,9 @@
 //!
 //! Every error names the file, the 1-based line and the key. Unknown keys are errors, numbers must
 //! be finite and fit an `f32`, directions must be non-zero, radii positive, materials defined.
-//! Relative paths are resolved against the scene file's directory.
+//! Relative paths are resolved against the scene file's directory. `[camera]` is the explicit
+//! camera, the look-at form ([`super::lookat`]) or a camera path of `[[camera.key]]` entries
+//! ([`super::camera_path`]), never a mix.
 
 use std::collections::BTreeMap;
 use std::ops::Range;

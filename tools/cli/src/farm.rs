@@ -352,12 +352,19 @@ fn plan(args: &SlurmArgs) -> Result<SlurmPlan> {
     };
     let mut scene_args = vec![];
     let a = &args.scene;
-    let scene_path = Path::new(&a.scene);
-    scene_args.push(if scene_path.exists() {
-        absolute(scene_path)?.to_string_lossy().into_owned()
-    } else {
+    let builtin = wavefront::scene::builtin::builtin(&a.scene).is_some();
+    scene_args.push(if builtin {
         a.scene.clone()
+    } else {
+        absolute(Path::new(&a.scene))?
+            .to_string_lossy()
+            .into_owned()
     });
+    // A built-in finds its mesh from the working directory (or $WAVEFRONT_SIBENIK): pin it.
+    let mesh = match (&a.mesh, builtin, scene.meshes.first()) {
+        (None, true, Some(m)) => Some(m.path.clone()),
+        (mesh, _, _) => mesh.clone(),
+    };
     let mut flag = |name: &str, value: Option<String>| {
         if let Some(v) = value {
             scene_args.push(name.to_owned());
@@ -376,12 +383,7 @@ fn plan(args: &SlurmArgs) -> Result<SlurmPlan> {
     );
     flag(
         "--mesh",
-        a.mesh.as_ref().map(|m| {
-            absolute(m)
-                .map_or(m.clone(), |p| p)
-                .to_string_lossy()
-                .into_owned()
-        }),
+        mesh.map(|m| absolute(&m).unwrap_or(m).to_string_lossy().into_owned()),
     );
     if a.no_shadows {
         scene_args.push("--no-shadows".into());

@@ -308,6 +308,20 @@ fn a_changed_mesh_file_makes_its_tiles_foreign() {
 }
 
 #[test]
+fn a_frame_range_loads_the_mesh_once() {
+    let s = Scratch::new("once");
+    s.write("tri.obj", "v -1 -1 -3\nv 1 -1 -3\nv 0 1 -3\nf 1 2 3\n");
+    let scene = path_scene().split("[[plane]]").next().unwrap().to_owned()
+        + "[[mesh]]\npath = \"tri.obj\"\nmaterial = \"red\"\n";
+    s.write("tri.toml", &scene);
+    let out = s.ok(&[
+        "render", "tri.toml", "--frames", "0-3", "--stats", "-o", "f#.png",
+    ]);
+    assert_eq!(out.matches("mesh: 1 triangles").count(), 1, "{out}");
+    assert_eq!(out.matches("wrote f").count(), 4, "{out}");
+}
+
+#[test]
 fn tile_n_reads_slurm_then_kubernetes_indices() {
     let s = Scratch::new("env");
     s.ok(&["render", "spheres", "--tile", "1/3", "-o", "k1.png"]);
@@ -479,6 +493,23 @@ fn farm_slurm_prints_or_writes_scripts_without_slurm() {
     assert!(
         s.files().iter().all(|f| f == "path.toml"),
         "--print wrote files"
+    );
+    // A built-in's mesh is pinned to an absolute path (tasks may start elsewhere).
+    let mut c = s.command(&[
+        "farm", "slurm", "sibenik", "--tiles", "2", "-o", "b.png", "--print",
+    ]);
+    let out = c
+        .env("WAVEFRONT_SIBENIK", "rel/sibenik.obj")
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&out.stdout);
+    let mesh = s.path().join("rel/sibenik.obj");
+    assert!(
+        out.contains(&format!(
+            "render sibenik --mesh {} --tile 2",
+            mesh.display()
+        )),
+        "{out}"
     );
 
     // Without --print or --submit the scripts are written and the directories made.
