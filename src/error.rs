@@ -49,6 +49,14 @@ pub enum SceneError {
         /// Where it was looked for.
         path: PathBuf,
     },
+    /// A frame the scene's camera cannot show (outside its camera path, or a degenerate view).
+    #[error("{scene}: {message}")]
+    Frame {
+        /// The scene's name.
+        scene: String,
+        /// What is wrong, naming the frame.
+        message: String,
+    },
     /// A setting overridden on the command line is out of range.
     #[error("invalid setting {key}: {message}")]
     Setting {

@@ -106,10 +106,10 @@ impl Film {
     }
 
     /// Averages each pixel's samples in `buffer` (slots as `wave` maps them) into the wave's
-    /// pixels: the box filter, in a fixed order.
+    /// pixels: the box filter, in a fixed order. The film is the wave's region.
     pub fn resolve_wave(&mut self, buffer: &SampleBuffer, wave: &Wave) {
         let samples = wave.samples as usize;
-        let (first, n) = (wave.first_pixel.0 as usize, wave.pixels as usize);
+        let (first, n) = (wave.first as usize, wave.pixels as usize);
         let inv = 1.0 / samples as f32;
         self.pixels[first..first + n]
             .par_iter_mut()
@@ -252,11 +252,7 @@ mod tests {
         b.reset(4);
         b.radiance = vec![Vec3::ONE, Vec3::ZERO, Vec3::splat(0.5), Vec3::splat(0.5)];
         let mut f = Film::new(2, 2);
-        let wave = Wave {
-            first_pixel: crate::queue::PixelIndex(2),
-            pixels: 2,
-            samples: 2,
-        };
+        let wave = Wave::of_image(2, 2, 2, 2, 2);
         f.resolve_wave(&b, &wave);
         assert_eq!(
             f.pixels,

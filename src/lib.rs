@@ -31,10 +31,12 @@ pub mod frame;
 pub mod geometry;
 pub mod mesh;
 pub mod queue;
+pub mod region;
 pub mod sampling;
 pub mod scene;
 pub mod schedule;
 pub mod stats;
+pub mod tile;
 pub mod wave;
 pub mod world;
 

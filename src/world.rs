@@ -43,8 +43,11 @@ pub struct Surface {
 /// The triangles of all meshes, merged, with their tree.
 #[derive(Debug)]
 pub struct Triangles {
-    /// All meshes' triangles, in scene order; triangle ids are indices into this mesh.
+    /// All meshes' triangles, in scene order, in the render frame; triangle ids are indices into
+    /// this mesh.
     mesh: TriangleMesh,
+    /// The same vertices in world coordinates (f64 as read): what another frame is made from.
+    world_positions: Vec<[f64; 3]>,
     /// Material of each triangle (one entry per mesh: `(first triangle, material)`).
     material_ranges: Vec<(u32, u32)>,
     /// The kD tree over `mesh`.
@@ -145,6 +148,29 @@ impl World {
         &self.materials
     }
 
+    /// The same world for `scene`'s camera (a frame of a camera path): analytic primitives and
+    /// lights are taken from `scene`, the mesh is moved into the new eye's frame from its f64
+    /// world coordinates, and the tree is moved with it ([`KdTree::reframed`]) instead of being
+    /// rebuilt. What a frame renders is then exactly what a static scene with that camera
+    /// renders (the closest hit does not depend on the tree).
+    pub fn reframed(&self, scene: &Scene) -> World {
+        let frame = RenderFrame::at(scene.camera.eye);
+        let triangles = self.triangles.as_ref().map(|t| Triangles {
+            mesh: TriangleMesh::new(
+                t.world_positions
+                    .iter()
+                    .map(|&p| frame.point(p.into()).to_array())
+                    .collect(),
+                t.mesh.indices.clone(),
+            ),
+            world_positions: t.world_positions.clone(),
+            material_ranges: t.material_ranges.clone(),
+            tree: t.tree.reframed(&self.frame, &frame),
+            source: t.source.clone(),
+        });
+        World::analytic(scene, frame, triangles)
+    }
+
     /// The render frame everything is traced in (world coordinates minus the eye).
     pub fn frame(&self) -> &RenderFrame {
         &self.frame
@@ -179,16 +205,18 @@ impl World {
     /// mesh is moved into the scene's render frame and a tree built over it with `method`.
     pub fn with_mesh(scene: &Scene, mesh: &TriangleMesh, method: BuildMethod) -> World {
         let frame = RenderFrame::at(scene.camera.eye);
-        let vertices = mesh
-            .vertices
+        let world_positions: Vec<[f64; 3]> =
+            mesh.vertices.iter().map(|v| v.map(f64::from)).collect();
+        let vertices = world_positions
             .iter()
-            .map(|v| frame.point(Vec3::from_array(*v).as_dvec3()).to_array())
+            .map(|&p| frame.point(p.into()).to_array())
             .collect();
         let mesh = TriangleMesh::new(vertices, mesh.indices.clone());
         let tree = KdTree::build(&mesh, method);
         let material = scene.meshes.first().map_or(0, |m| m.material);
         let triangles = Triangles {
             mesh,
+            world_positions,
             material_ranges: vec![(0, material)],
             tree,
             source: TreeSource::Sah,
@@ -386,12 +414,15 @@ fn load_triangles(
 ) -> Result<(Triangles, SetupTimes), LoadError> {
     let start = Instant::now();
     let mut mesh = TriangleMesh::default();
+    let mut world_positions = vec![];
     let mut material_ranges = Vec::with_capacity(scene.meshes.len());
     for m in &scene.meshes {
         if !m.path.exists() {
             return Err(crate::scene::builtin::missing_mesh(&m.path).into());
         }
-        let part = ObjMesh::read(&m.path)?.to_frame(frame.origin)?;
+        let obj = ObjMesh::read(&m.path)?;
+        let part = obj.to_frame(frame.origin)?;
+        world_positions.extend_from_slice(&obj.positions);
         material_ranges.push((mesh.len() as u32, m.material));
         let base = mesh.vertices.len() as u32;
         mesh.vertices.extend_from_slice(&part.vertices);
@@ -413,6 +444,7 @@ fn load_triangles(
     };
     let triangles = Triangles {
         mesh,
+        world_positions,
         material_ranges,
         tree,
         source,

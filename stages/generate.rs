@@ -38,7 +38,6 @@ pub fn camera_ray(
     let (dx, dy) = strata.offset(image.seed, pixel.0, s);
     RayItem {
         origin: Vec3::ZERO, // the eye: the render frame's origin
-
         direction: camera.ray_direction(pixel, (dx, dy), image.width, image.height),
         t_max: f32::INFINITY,
         weight: Vec3::ONE,
@@ -71,17 +70,12 @@ pub fn generate_camera_rays(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::queue::PixelIndex;
     use crate::scene::builtin::spheres;
 
     #[test]
     fn fills_every_column_for_every_sample() {
         let scene = spheres();
-        let wave = Wave {
-            first_pixel: PixelIndex(512 * 256),
-            pixels: 3,
-            samples: 4,
-        };
+        let wave = Wave::of_image(512, 512, 512 * 256, 3, 4);
         let mut q = RayQueue::default();
         generate_camera_rays(&scene.camera, &scene.image, &wave, CameraRays::of(&mut q));
         assert_eq!(q.len(), 12);
@@ -109,11 +103,7 @@ mod tests {
         let mut scene = spheres();
         scene.image.width = 2;
         scene.image.height = 2;
-        let wave = Wave {
-            first_pixel: PixelIndex(0),
-            pixels: 4,
-            samples: 1,
-        };
+        let wave = Wave::of_image(2, 2, 0, 4, 1);
         let ray = |s| camera_ray(&scene.camera, &scene.image, &wave, &Strata::new(1), s);
         // Pixel (0, 0) is the top-left: us = -0.05, vs = +0.05.
         let expected = Vec3::new(-0.05, 0.05, -0.1).normalize();

@@ -2,6 +2,7 @@
 
 use wavefront::RenderOptions;
 use wavefront::Scene;
+use wavefront::region::Region;
 use wavefront::scene::builtin::spheres;
 use wavefront_kit::testkit::*;
 
@@ -71,27 +72,39 @@ fn rendering_twice_gives_the_same_image() {
     );
 }
 
+/// The full render's pixels inside `region` (8-bit RGB rows), to compare with a region render.
+fn crop(full: &[u8], width: u32, region: Region) -> Vec<u8> {
+    let (w, x0, x1) = (width as usize, region.x0 as usize, region.x1 as usize);
+    (region.y0 as usize..region.y1 as usize)
+        .flat_map(|j| full[(j * w + x0) * 3..(j * w + x1) * 3].iter().copied())
+        .collect()
+}
+
 #[test]
-fn a_pixel_range_renders_exactly_the_full_images_pixels_there() {
+fn a_region_renders_exactly_the_full_images_pixels_there() {
     let scene = spheres_4spp_depth3();
     let full = render_png_bytes(&scene);
-    // A range that starts and ends inside waves of 1000 samples (250 pixels).
-    let range = 100_123..131_077;
-    let options = RenderOptions {
-        wave_samples: 1000,
-        pixel_range: Some(range.clone()),
-    };
-    let part = render_png_bytes_with(&scene, options);
-    let bytes = range.start as usize * 3..range.end as usize * 3;
-    assert!(
-        full[bytes.clone()] == part[bytes.clone()],
-        "pixels inside the range differ"
-    );
-    assert!(
-        part[..bytes.start]
-            .iter()
-            .chain(&part[bytes.end..])
-            .all(|&b| b == 0),
-        "pixels outside the range were rendered"
-    );
+    // Rectangles whose rows start and end inside waves of 1000 samples (250 pixels), a band of
+    // whole rows, and a single pixel.
+    for bounds in [
+        "100,357,195,256",
+        "0,512,170,341",
+        "511,512,0,1",
+        "3,4,500,512",
+    ] {
+        let region: Region = bounds.parse().unwrap();
+        let options = RenderOptions {
+            wave_samples: 1000,
+            region: Some(region),
+        };
+        let film = render_film_with(&scene, options);
+        assert_eq!((film.width, film.height), (region.width(), region.height()));
+        let part = film.to_rgb8(scene.image.gamma);
+        let expected = crop(&full, scene.image.width, region);
+        assert!(
+            part == expected,
+            "region {bounds} differs from the full render, first at pixel {:?}",
+            first_difference(&part, &expected)
+        );
+    }
 }

@@ -71,6 +71,7 @@ pub fn spheres() -> Scene {
             t: 0.1,
             d: 0.1,
         },
+        camera_path: None,
         render: RenderSettings {
             max_depth: 2,
             shadows: true,
@@ -156,6 +157,7 @@ pub fn sibenik(shadows: bool) -> Scene {
             t: 0.1,
             d: 0.1,
         },
+        camera_path: None,
         render: RenderSettings {
             max_depth: 0,
             shadows,

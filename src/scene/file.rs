@@ -2,7 +2,9 @@
 //!
 //! Every error names the file, the 1-based line and the key. Unknown keys are errors, numbers must
 //! be finite and fit an `f32`, directions must be non-zero, radii positive, materials defined.
-//! Relative paths are resolved against the scene file's directory.
+//! Relative paths are resolved against the scene file's directory. `[camera]` is the explicit
+//! camera, the look-at form ([`super::lookat`]) or a camera path of `[[camera.key]]` entries
+//! ([`super::camera_path`]), never a mix.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -12,9 +14,11 @@ use glam::{DVec3, Vec3};
 use serde::Deserialize;
 use toml::Spanned;
 
+use super::camera_path::CameraKey;
+use super::lookat::LookAt;
 use super::{
-    Camera, ImageSettings, Material, MeshRef, OffsetMethod, Plane, PointLight, RenderMode,
-    RenderSettings, Robustness, Scene, Sphere, SphereTest, TreeSource, TriangleTest,
+    Camera, CameraPath, ImageSettings, Material, MeshRef, OffsetMethod, Plane, PointLight,
+    RenderMode, RenderSettings, Robustness, Scene, Sphere, SphereTest, TreeSource, TriangleTest,
 };
 use crate::error::SceneError;
 
@@ -31,7 +35,7 @@ type V3 = Spanned<[f64; 3]>;
 #[serde(deny_unknown_fields)]
 struct RawScene {
     image: Option<RawImage>,
-    camera: RawCamera,
+    camera: Spanned<RawCamera>,
     render: Option<RawRender>,
     #[serde(default)]
     light: Vec<RawLight>,
@@ -64,15 +68,32 @@ struct RawWindow {
     t: Spanned<f64>,
 }
 
+/// `[camera]`: the explicit form (`eye u v w window distance`), the look-at form
+/// (`eye look_at up fov_y`, SPEC §10), or a camera path (`[[camera.key]]` only).
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawCamera {
+    eye: Option<V3>,
+    u: Option<V3>,
+    v: Option<V3>,
+    w: Option<V3>,
+    window: Option<Spanned<RawWindow>>,
+    distance: Option<Spanned<f64>>,
+    look_at: Option<V3>,
+    up: Option<V3>,
+    fov_y: Option<Spanned<f64>>,
+    key: Option<Vec<Spanned<RawKey>>>,
+}
+
+/// One `[[camera.key]]` of a camera path.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawKey {
+    frame: Spanned<i64>,
     eye: V3,
-    u: V3,
-    v: V3,
-    w: V3,
-    window: Spanned<RawWindow>,
-    distance: Spanned<f64>,
+    look_at: V3,
+    up: V3,
+    fov_y: Spanned<f64>,
 }
 
 #[derive(Deserialize)]
@@ -211,6 +232,16 @@ impl Cx<'_> {
         Ok(x as f32)
     }
 
+    /// A finite f64 (look-at fields are computed in f64).
+    fn finite(&self, v: &Spanned<f64>, key: &str) -> Result<f64, SceneError> {
+        self.float(v, key).map(|_| *v.get_ref())
+    }
+
+    /// A finite 3-vector kept in f64 (each component must still fit an f32).
+    fn dvec3(&self, v: &V3, key: &str) -> Result<DVec3, SceneError> {
+        self.vec3(v, key).map(|_| DVec3::from(*v.get_ref()))
+    }
+
     fn vec3(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
         let a = v.get_ref();
         let mut out = [0.0f32; 3];
@@ -297,7 +328,7 @@ impl Cx<'_> {
 
     fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
         let image = self.image(raw.image)?;
-        let camera = self.camera(&raw.camera)?;
+        let (camera, camera_path) = self.camera(&raw.camera, &image)?;
         let render = self.render(raw.render)?;
 
         let mut lights = Vec::with_capacity(raw.light.len());
@@ -403,6 +434,7 @@ impl Cx<'_> {
             name: self.path.display().to_string(),
             image,
             camera,
+            camera_path,
             render,
             lights,
             materials,
@@ -444,26 +476,191 @@ impl Cx<'_> {
         Ok(image)
     }
 
-    fn camera(&self, raw: &RawCamera) -> Result<Camera, SceneError> {
-        let win = raw.window.get_ref();
+    fn camera(
+        &self,
+        raw: &Spanned<RawCamera>,
+        image: &ImageSettings,
+    ) -> Result<(Camera, Option<CameraPath>), SceneError> {
+        let c = raw.get_ref();
+        let span = |v: Option<Range<usize>>| v.unwrap_or(raw.span());
+        let explicit = [
+            ("u", c.u.as_ref().map(Spanned::span)),
+            ("v", c.v.as_ref().map(Spanned::span)),
+            ("w", c.w.as_ref().map(Spanned::span)),
+            ("window", c.window.as_ref().map(Spanned::span)),
+            ("distance", c.distance.as_ref().map(Spanned::span)),
+        ];
+        let look_at = [
+            ("look_at", c.look_at.as_ref().map(Spanned::span)),
+            ("up", c.up.as_ref().map(Spanned::span)),
+            ("fov_y", c.fov_y.as_ref().map(Spanned::span)),
+        ];
+        let first = |fields: &[(&'static str, Option<Range<usize>>)]| {
+            fields
+                .iter()
+                .find_map(|(k, sp)| sp.clone().map(|sp| (*k, sp)))
+        };
+        if let Some(keys) = &c.key {
+            let eye = c.eye.as_ref().map(|e| ("eye", e.span()));
+            if let Some((k, sp)) = eye.or_else(|| first(&explicit)).or_else(|| first(&look_at)) {
+                return Err(self.err(
+                    sp,
+                    format!("camera.{k}"),
+                    "cannot be combined with [[camera.key]]: a camera path gives every view",
+                ));
+            }
+            let path = self.camera_path(keys, raw.span())?;
+            let camera = self.look_at_camera(&path.keys[0].view, image, "camera.key[0]", |k| {
+                let key = keys[0].get_ref();
+                match k {
+                    "look_at" => key.look_at.span(),
+                    "up" => key.up.span(),
+                    _ => key.fov_y.span(),
+                }
+            })?;
+            return Ok((camera, Some(path)));
+        }
+        if let Some((k, sp)) = first(&look_at) {
+            if let Some((e, esp)) = first(&explicit) {
+                let (key, sp) = if esp.start > sp.start {
+                    (e, esp)
+                } else {
+                    (k, sp)
+                };
+                return Err(self.err(
+                    sp,
+                    format!("camera.{key}"),
+                    "the look-at form (eye, look_at, up, fov_y) cannot be combined with the \
+                     explicit form (eye, u, v, w, window, distance)",
+                ));
+            }
+            let missing = |key: &str| {
+                self.err(
+                    raw.span(),
+                    format!("camera.{key}"),
+                    "missing: a look-at camera needs eye, look_at, up and fov_y",
+                )
+            };
+            let view = LookAt {
+                eye: self.dvec3(c.eye.as_ref().ok_or_else(|| missing("eye"))?, "camera.eye")?,
+                look_at: self.dvec3(
+                    c.look_at.as_ref().ok_or_else(|| missing("look_at"))?,
+                    "camera.look_at",
+                )?,
+                up: self.dvec3(c.up.as_ref().ok_or_else(|| missing("up"))?, "camera.up")?,
+                fov_y: self.finite(
+                    c.fov_y.as_ref().ok_or_else(|| missing("fov_y"))?,
+                    "camera.fov_y",
+                )?,
+            };
+            let camera = self.look_at_camera(&view, image, "camera", |k| {
+                span(match k {
+                    "look_at" => c.look_at.as_ref().map(Spanned::span),
+                    "up" => c.up.as_ref().map(Spanned::span),
+                    _ => c.fov_y.as_ref().map(Spanned::span),
+                })
+            })?;
+            return Ok((camera, None));
+        }
+        let missing = |key: &str| {
+            self.err(
+                raw.span(),
+                format!("camera.{key}"),
+                "missing: an explicit camera needs eye, u, v, w, window and distance \
+                 (or use the look-at form: eye, look_at, up, fov_y)",
+            )
+        };
+        let (Some(eye), Some(u), Some(v), Some(w), Some(window), Some(distance)) =
+            (&c.eye, &c.u, &c.v, &c.w, &c.window, &c.distance)
+        else {
+            let names = [("eye", c.eye.is_some())]
+                .into_iter()
+                .chain(explicit.iter().map(|(k, sp)| (*k, sp.is_some())));
+            let absent = names.filter(|(_, present)| !present).map(|(k, _)| k);
+            return Err(missing(absent.into_iter().next().unwrap_or("eye")));
+        };
+        let win = window.get_ref();
         let cam = Camera {
-            eye: self.position(&raw.eye, "camera.eye")?,
-            u: self.direction(&raw.u, "camera.u")?,
-            v: self.direction(&raw.v, "camera.v")?,
-            w: self.direction(&raw.w, "camera.w")?,
+            eye: self.position(eye, "camera.eye")?,
+            u: self.direction(u, "camera.u")?,
+            v: self.direction(v, "camera.v")?,
+            w: self.direction(w, "camera.w")?,
             l: self.float(&win.l, "camera.window.l")?,
             r: self.float(&win.r, "camera.window.r")?,
             b: self.float(&win.b, "camera.window.b")?,
             t: self.float(&win.t, "camera.window.t")?,
-            d: self.float(&raw.distance, "camera.distance")?,
+            d: self.float(distance, "camera.distance")?,
         };
         if cam.l >= cam.r || cam.b >= cam.t {
-            return Err(self.err(raw.window.span(), "camera.window", "needs l < r and b < t"));
+            return Err(self.err(window.span(), "camera.window", "needs l < r and b < t"));
         }
         if cam.d <= 0.0 {
-            return Err(self.err(raw.distance.span(), "camera.distance", "must be > 0"));
+            return Err(self.err(distance.span(), "camera.distance", "must be > 0"));
         }
-        Ok(cam)
+        Ok((cam, None))
+    }
+
+    /// The camera of a look-at view; a degenerate view is an error at the field `span_of` names.
+    fn look_at_camera(
+        &self,
+        view: &LookAt,
+        image: &ImageSettings,
+        prefix: &str,
+        span_of: impl Fn(&str) -> Range<usize>,
+    ) -> Result<Camera, SceneError> {
+        view.camera(image.width, image.height).map_err(|e| {
+            self.err(
+                span_of(e.key()),
+                format!("{prefix}.{}", e.key()),
+                e.to_string(),
+            )
+        })
+    }
+
+    /// `[[camera.key]]` entries: frames ≥ 0 and strictly increasing, every key a valid view.
+    fn camera_path(
+        &self,
+        keys: &[Spanned<RawKey>],
+        table: Range<usize>,
+    ) -> Result<CameraPath, SceneError> {
+        if keys.is_empty() {
+            return Err(self.err(table, "camera.key", "a camera path needs at least one key"));
+        }
+        let mut out: Vec<CameraKey> = Vec::with_capacity(keys.len());
+        for (i, key) in keys.iter().enumerate() {
+            let k = key.get_ref();
+            let name = |f: &str| format!("camera.key[{i}].{f}");
+            let frame = self.int(&k.frame, &name("frame"), 0, i64::from(u32::MAX))?;
+            if let Some(prev) = out.last()
+                && frame <= prev.frame
+            {
+                return Err(self.err(
+                    k.frame.span(),
+                    name("frame"),
+                    format!(
+                        "{frame} must be greater than the previous key's frame {}",
+                        prev.frame
+                    ),
+                ));
+            }
+            let view = LookAt {
+                eye: self.dvec3(&k.eye, &name("eye"))?,
+                look_at: self.dvec3(&k.look_at, &name("look_at"))?,
+                up: self.dvec3(&k.up, &name("up"))?,
+                fov_y: self.finite(&k.fov_y, &name("fov_y"))?,
+            };
+            // Every key must be a valid view on its own (1×1: the aspect does not matter here).
+            view.camera(1, 1).map_err(|e| {
+                let sp = match e.key() {
+                    "look_at" => k.look_at.span(),
+                    "up" => k.up.span(),
+                    _ => k.fov_y.span(),
+                };
+                self.err(sp, name(e.key()), e.to_string())
+            })?;
+            out.push(CameraKey { frame, view });
+        }
+        Ok(CameraPath { keys: out })
     }
 
     fn render(&self, raw: Option<RawRender>) -> Result<RenderSettings, SceneError> {
@@ -620,6 +817,143 @@ material = "m"
         assert!(e.starts_with("t.toml:2: render.max_depth:"), "{e}");
         let e = parse_err(&MINIMAL.replace("kd = [1.0, 1.0, 1.0]", "alpha = 1.5"));
         assert!(e.starts_with("t.toml:11: material.m.alpha:"), "{e}");
+    }
+
+    /// MINIMAL with its camera replaced by `camera` (the `[camera]` header is line 2).
+    fn with_camera(camera: &str) -> String {
+        let start = MINIMAL.find("[camera]").unwrap();
+        let end = MINIMAL.find("[material.m]").unwrap();
+        format!(
+            "{}[camera]\n{camera}\n{}",
+            &MINIMAL[..start],
+            &MINIMAL[end..]
+        )
+    }
+
+    const LOOK_AT: &str =
+        "eye = [0.0, 0.0, 0.0]\nlook_at = [0.0, 0.0, -5.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 90.0";
+
+    #[test]
+    fn a_look_at_camera_is_the_spec_basis_and_window() {
+        let s = parse(&with_camera(LOOK_AT), Path::new("t.toml")).unwrap();
+        let c = &s.camera;
+        assert_eq!((c.u, c.v, c.w), (Vec3::X, Vec3::Y, Vec3::Z));
+        assert_eq!((c.l, c.r, c.b, c.t, c.d), (-1.0, 1.0, -1.0, 1.0, 1.0));
+        assert!(s.camera_path.is_none());
+    }
+
+    #[test]
+    fn degenerate_look_at_cameras_name_line_and_key() {
+        let e = parse_err(&with_camera(
+            &LOOK_AT.replace("up = [0.0, 1.0, 0.0]", "up = [0.0, 0.0, -3.0]"),
+        ));
+        assert!(
+            e.starts_with("t.toml:5: camera.up: up is zero or parallel"),
+            "{e}"
+        );
+        let e = parse_err(&with_camera(
+            &LOOK_AT.replace("[0.0, 0.0, -5.0]", "[0.0, 0.0, 0.0]"),
+        ));
+        assert!(
+            e.starts_with("t.toml:4: camera.look_at: look_at equals eye"),
+            "{e}"
+        );
+        for fov in ["0.0", "180.0", "-1.0", "200.0"] {
+            let e = parse_err(&with_camera(&LOOK_AT.replace("90.0", fov)));
+            assert!(
+                e.starts_with("t.toml:6: camera.fov_y: fov_y must be inside (0, 180)"),
+                "{e}"
+            );
+        }
+        let e = parse_err(&with_camera(&LOOK_AT.replace("fov_y = 90.0", "")));
+        assert!(
+            e.starts_with("t.toml:") && e.contains("camera.fov_y: missing"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn both_camera_forms_at_once_is_an_error() {
+        let e = parse_err(&with_camera(&format!("{LOOK_AT}\ndistance = 0.1")));
+        assert!(
+            e.starts_with("t.toml:7: camera.distance: the look-at form"),
+            "{e}"
+        );
+        let e = parse_err(&MINIMAL.replace("distance = 0.1", "distance = 0.1\nfov_y = 30.0"));
+        assert!(
+            e.starts_with("t.toml:9: camera.fov_y: the look-at form"),
+            "{e}"
+        );
+    }
+
+    fn key(frame: i64, x: f64) -> String {
+        format!(
+            "[[camera.key]]\nframe = {frame}\neye = [{x}, 0.0, 0.0]\nlook_at = [0.0, 0.0, -5.0]\n\
+             up = [0.0, 1.0, 0.0]\nfov_y = 60.0\n"
+        )
+    }
+
+    /// MINIMAL with a camera path of `keys` (the first key's header is line 2).
+    fn with_keys(keys: &str) -> String {
+        let start = MINIMAL.find("[camera]").unwrap();
+        let end = MINIMAL.find("[material.m]").unwrap();
+        format!("{}{keys}\n{}", &MINIMAL[..start], &MINIMAL[end..])
+    }
+
+    #[test]
+    fn a_camera_path_starts_at_its_first_key() {
+        let s = parse(
+            &with_keys(&(key(3, 1.0) + &key(7, 2.0))),
+            Path::new("t.toml"),
+        )
+        .unwrap();
+        let path = s.camera_path.as_ref().unwrap();
+        assert_eq!(path.keys.len(), 2);
+        assert_eq!(s.default_frame(), Some(3));
+        assert_eq!(s.camera.eye, glam::DVec3::X);
+        assert_eq!(
+            s.at_frame(5).unwrap().camera.eye,
+            glam::DVec3::new(1.5, 0.0, 0.0)
+        );
+        let e = s.at_frame(8).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "t.toml: frame 8 is outside the camera path's keys (3..=7)"
+        );
+    }
+
+    #[test]
+    fn bad_camera_keys_name_line_and_key() {
+        let e = parse_err(&with_keys(&(key(3, 1.0) + &key(3, 2.0))));
+        assert!(
+            e.starts_with("t.toml:9: camera.key[1].frame: 3 must be greater"),
+            "{e}"
+        );
+        let e = parse_err(&with_keys(&key(-1, 1.0)));
+        assert!(e.starts_with("t.toml:3: camera.key[0].frame:"), "{e}");
+        let e = parse_err(&with_keys(
+            &key(0, 0.0).replace("[0.0, 0.0, -5.0]", "[0.0, 0.0, 0.0]"),
+        ));
+        assert!(e.starts_with("t.toml:5: camera.key[0].look_at:"), "{e}");
+        let e = parse_err(&with_keys(
+            &key(0, 0.0).replace("fov_y = 60.0", "fov_y = 180.0"),
+        ));
+        assert!(e.starts_with("t.toml:7: camera.key[0].fov_y:"), "{e}");
+        let e = parse_err(&with_keys(&format!(
+            "[camera]\nfov_y = 20.0\n{}",
+            key(0, 0.0)
+        )));
+        assert!(
+            e.starts_with("t.toml:3: camera.fov_y: cannot be combined with [[camera.key]]"),
+            "{e}"
+        );
+        let e = parse_err(&with_keys(
+            &key(0, 0.0).replace("fov_y = 60.0", "fov_y = 60.0\nroll = 3.0"),
+        ));
+        assert!(
+            e.starts_with("t.toml:8: roll:") && e.contains("unknown field"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -7,7 +7,9 @@
 
 pub mod builtin;
 pub mod camera;
+pub mod camera_path;
 pub mod file;
+pub mod lookat;
 pub mod overrides;
 
 use std::path::PathBuf;
@@ -15,6 +17,7 @@ use std::path::PathBuf;
 use glam::{DVec3, Vec3};
 
 pub use camera::Camera;
+pub use camera_path::CameraPath;
 
 /// Image size, sampling and output transfer curve (`[image]`).
 #[derive(Clone, Debug, PartialEq)]
@@ -206,8 +209,10 @@ pub struct Scene {
     pub name: String,
     /// Image settings.
     pub image: ImageSettings,
-    /// Camera.
+    /// Camera (with a camera path: the first key's, or the frame's after [`Scene::at_frame`]).
     pub camera: Camera,
+    /// Look-at keys of an animated camera (`[[camera.key]]`), if any.
+    pub camera_path: Option<CameraPath>,
     /// Render settings.
     pub render: RenderSettings,
     /// Point lights.

@@ -18,11 +18,11 @@ pub mod observer;
 pub mod stage;
 
 use std::fmt;
-use std::ops::Range;
 use std::time::Instant;
 
 use crate::film::{Film, SampleBuffer};
-use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, RowIndex, ShadowQueue};
+use crate::queue::{HitColumns, HitQueue, RayQueue, RowIndex, ShadowQueue};
+use crate::region::Region;
 use crate::scene::{RenderMode, Scene};
 use crate::stages::generate::{CameraRays, generate_camera_rays};
 use crate::stages::intersect::{
@@ -177,17 +177,17 @@ impl fmt::Display for Pipeline {
 pub struct RenderOptions {
     /// Upper bound on samples per wave (rounded to whole pixels, at least one pixel).
     pub wave_samples: usize,
-    /// Row-major pixel indices to render (`None`: the whole image). Waves start at the first
-    /// pixel of the whole image and step by whole waves, so the waves (and the samples) of a range
-    /// are exactly those of the full render; pixels outside it stay black in the film.
-    pub pixel_range: Option<Range<u32>>,
+    /// The rectangle of the image to render (`None`: the whole image); the film has its size.
+    /// Its pixels are exactly the full render's there: samples are seeded by the whole image's
+    /// pixel index, whatever the waves.
+    pub region: Option<Region>,
 }
 
 impl Default for RenderOptions {
     fn default() -> Self {
         RenderOptions {
             wave_samples: DEFAULT_WAVE_SAMPLES,
-            pixel_range: None,
+            region: None,
         }
     }
 }
@@ -200,26 +200,33 @@ impl RenderOptions {
         let total = image.width as usize * image.height as usize;
         (self.wave_samples / spp).clamp(1, total.max(1)) as u32
     }
+
+    /// The region rendered for `scene`: [`RenderOptions::region`] clipped to the image, or the
+    /// whole image.
+    pub fn region_of(&self, scene: &Scene) -> Region {
+        let (w, h) = (scene.image.width, scene.image.height);
+        self.region.map_or(Region::full(w, h), |r| r.clipped(w, h))
+    }
 }
 
-/// The waves of a render, in order: whole-image waves clipped to `options.pixel_range`.
+/// The waves of a render, in order: the region's pixels, row-major, in runs of
+/// [`RenderOptions::pixels_per_wave`]. For the whole image these are runs of the image's pixels.
 pub fn waves(scene: &Scene, options: &RenderOptions) -> impl Iterator<Item = Wave> + use<> {
     let image = &scene.image;
-    let total = image.width * image.height;
+    let region = options.region_of(scene);
+    let image_width = image.width;
+    let total = region.pixels() as u32;
     let per_wave = options.pixels_per_wave(scene);
-    let range = options.pixel_range.clone().unwrap_or(0..total);
-    let (start, end) = (range.start.min(total), range.end.min(total));
     let samples = image.samples.max(1);
-    let first = (start / per_wave) * per_wave;
-    (first..end).step_by(per_wave as usize).map(move |p| {
-        let lo = p.max(start);
-        let hi = (p + per_wave).min(end);
-        Wave {
-            first_pixel: PixelIndex(lo),
-            pixels: hi - lo,
+    (0..total)
+        .step_by(per_wave as usize)
+        .map(move |first| Wave {
+            region,
+            image_width,
+            first,
+            pixels: (first + per_wave).min(total) - first,
             samples,
-        }
-    })
+        })
 }
 
 /// The queues of one wave, reused across depths and waves so kernels allocate only while growing.
@@ -270,17 +277,27 @@ pub fn render(
 }
 
 /// Renders `scene`, showing every stage call and wave to `observer`. This is the renderer: for
-/// each wave, for each depth of the [`Pipeline`], each of that depth's stages in order.
+/// each wave, for each depth of the [`Pipeline`], each of that depth's stages in order. The film
+/// covers [`RenderOptions::region_of`] the scene.
 pub fn render_observed(
     scene: &Scene,
     world: &World,
     options: &RenderOptions,
     mut observer: impl Observer,
 ) -> Film {
+    // Camera rays start at the frame's origin: trace in the frame of this scene's eye (a world
+    // loaded for another camera of a path is moved, not rebuilt).
+    let reframed;
+    let world = if world.frame().origin == scene.camera.eye {
+        world
+    } else {
+        reframed = world.reframed(scene);
+        &reframed
+    };
     let pipeline = Pipeline::for_scene(scene);
-    let image = &scene.image;
-    let total = u64::from(image.width) * u64::from(image.height);
-    let mut film = Film::new(image.width, image.height);
+    let region = options.region_of(scene);
+    let total = region.pixels();
+    let mut film = Film::new(region.width(), region.height());
     let mut ws = WaveQueues::default();
     let mut done = 0;
 

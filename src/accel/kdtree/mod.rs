@@ -16,6 +16,7 @@ mod build_midpoint;
 mod build_sah;
 pub mod node;
 mod overlap;
+mod reframe;
 mod stats;
 mod text;
 #[allow(unsafe_code)] // until the SIMD module holds every unsafe block

@@ -1,5 +1,10 @@
 //! The `wavefront` command line (SPEC §9): argument parsing, I/O and printing only.
 
+mod farm;
+mod frames;
+mod merge;
+mod plan;
+
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant};
@@ -38,6 +43,12 @@ enum Command {
     Report(ReportArgs),
     /// Time each stage kernel alone on a snapshot of its input queue (and a full frame).
     Bench(BenchArgs),
+    /// Merge tiles (`render --tile`, `--pixel-bounds`) into the full image, byte-identical to a
+    /// single render; writes nothing unless the tiles cover every pixel exactly once.
+    Merge(merge::MergeArgs),
+    /// Write (and submit) render-farm jobs.
+    #[command(subcommand)]
+    Farm(farm::FarmCommand),
 }
 
 #[derive(Args)]
@@ -128,6 +139,8 @@ struct RenderArgs {
     /// Upper bound on samples traced per wave (bounds memory).
     #[arg(long, default_value_t = wavefront::schedule::DEFAULT_WAVE_SAMPLES)]
     wave_samples: usize,
+    #[command(flatten)]
+    part: plan::PartArgs,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -171,6 +184,8 @@ fn main() -> ExitCode {
         Some(Command::Kdtree(cmd)) => run_kdtree(cmd),
         Some(Command::Bench(args)) => run_bench(&args),
         Some(Command::Report(args)) => run_report(&args),
+        Some(Command::Merge(args)) => merge::run(&args),
+        Some(Command::Farm(cmd)) => farm::run(cmd),
         None => unreachable!("defaulted to render above"),
     };
     match result {
@@ -220,6 +235,7 @@ fn run_plan(args: &SceneArgs) -> Result<()> {
 
 fn run_render(args: RenderArgs) -> Result<()> {
     let scene = scene_from(&args.scene)?;
+    let jobs = plan::RenderPlan::new(&scene, &args.part, &args.output, |v| std::env::var(v).ok())?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
         if n == 0 {
@@ -230,18 +246,28 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let pool = builder.build().context("cannot start the thread pool")?;
     let options = RenderOptions {
         wave_samples: args.wave_samples.max(1),
-        ..RenderOptions::default()
+        region: jobs.region,
     };
+    let todo: Vec<&plan::FrameJob> = jobs
+        .frames
+        .iter()
+        .filter(|job| {
+            let skip = args.part.skip_existing && job.output.exists();
+            if skip {
+                println!("skipped {} (exists)", job.output.display());
+            }
+            !skip
+        })
+        .collect();
+    if todo.is_empty() {
+        return Ok(());
+    }
     let start = Instant::now();
-    let (film, stats, world_seconds) = pool.install(|| -> Result<_> {
+    pool.install(|| -> Result<()> {
+        // One mesh load and one tree for every frame; each frame moves them to its own eye.
         let (world, setup) = World::load_timed(&scene)
             .with_context(|| format!("cannot load scene {}", scene.name))?;
         let world_seconds = start.elapsed().as_secs_f64();
-        let bar = Progress::new();
-        let (film, stats) = render(&scene, &world, options, |done, total| {
-            bar.update(done, total)
-        });
-        bar.finish();
         if args.stats
             && let Some(t) = world.triangles()
         {
@@ -253,21 +279,41 @@ fn run_render(args: RenderArgs) -> Result<()> {
                 setup.tree_seconds * 1e3
             );
         }
-        Ok((film, stats, world_seconds))
-    })?;
-    film.save(&args.output, scene.image.gamma)?;
-    if args.stats {
-        println!("{stats}");
-        println!(
-            "scene {} at {} spp on {} thread(s): setup {:.1} ms, wall {:.1} ms",
-            scene.name,
-            scene.image.samples,
-            pool.current_num_threads(),
-            world_seconds * 1e3,
-            start.elapsed().as_secs_f64() * 1e3
-        );
-    }
-    Ok(())
+        let sources = match jobs.region {
+            Some(_) => Some(
+                wavefront::tile::SourceDigest::of(&scene)
+                    .context("cannot read the scene's files to fingerprint the tile")?,
+            ),
+            None => None,
+        };
+        for job in todo {
+            // `render` moves the world to this frame's eye (World::reframed) when it moved.
+            let bar = Progress::new();
+            let (film, stats) = render(&job.scene, &world, options.clone(), |done, total| {
+                bar.update(done, total)
+            });
+            bar.finish();
+            match sources {
+                Some(sources) => plan::save_part(&film, job, jobs.region, sources)?,
+                None => film.save(&job.output, job.scene.image.gamma)?,
+            }
+            if jobs.announce {
+                println!("wrote {}", job.output.display());
+            }
+            if args.stats {
+                println!("{stats}");
+                println!(
+                    "scene {} at {} spp on {} thread(s): setup {:.1} ms, wall {:.1} ms",
+                    scene.name,
+                    scene.image.samples,
+                    rayon::current_num_threads(),
+                    world_seconds * 1e3,
+                    start.elapsed().as_secs_f64() * 1e3
+                );
+            }
+        }
+        Ok(())
+    })
 }
 
 fn run_bench(args: &BenchArgs) -> Result<()> {

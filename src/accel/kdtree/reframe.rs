@@ -1,0 +1,36 @@
+//! Moving a tree from one render frame to another: the root box and every split plane go through
+//! world coordinates in f64, exactly as a tree file's numbers do ([`KdTree::read_text_in`]), so a
+//! tree built once serves every camera of a camera path.
+
+use super::{KdNode, KdTree};
+use crate::frame::RenderFrame;
+
+impl KdTree {
+    /// This tree (built or read in frame `from`) in frame `to`. Triangle lists are unchanged;
+    /// traversal data is rebuilt for the mesh it is next used with.
+    pub fn reframed(&self, from: &RenderFrame, to: &RenderFrame) -> KdTree {
+        let move_to = |axis: usize, x: f32| to.coordinate(axis, from.world_coordinate(axis, x));
+        let nodes = self
+            .nodes
+            .iter()
+            .map(|&n| {
+                if n.is_leaf() {
+                    n
+                } else {
+                    KdNode::inner(n.axis(), move_to(n.axis(), n.split()), n.right())
+                }
+            })
+            .collect();
+        let (lo, hi) = self.root;
+        KdTree {
+            nodes,
+            tri_indices: self.tri_indices.clone(),
+            root: (
+                std::array::from_fn(|k| move_to(k, lo[k])),
+                std::array::from_fn(|k| move_to(k, hi[k])),
+            ),
+            triangle_count: self.triangle_count,
+            prepared: Default::default(),
+        }
+    }
+}
