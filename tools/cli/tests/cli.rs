@@ -258,7 +258,7 @@ fn report_writes_markdown_csv_and_plot() {
         "{md}"
     );
     let plot = image::open(dir.join("error_vs_time.png")).unwrap();
-    assert_eq!((plot.width(), plot.height()), (1000, 640));
+    assert_eq!((plot.width(), plot.height()), (1400, 1000));
 }
 
 /// Scene A as shipped, the base of the mutations.

@@ -1043,7 +1043,10 @@ mod tests {
                 assert!((back.mrays_per_s - orig.mrays_per_s).abs() <= 1e-9 * orig.mrays_per_s);
             } else {
                 let timing = v["timing"].as_str().unwrap();
-                assert!(["frame", "baseline_recursive"].contains(&timing), "{timing}");
+                assert!(
+                    ["frame", "baseline_recursive"].contains(&timing),
+                    "{timing}"
+                );
             }
         }
         assert_eq!(stages, report.stages.len());
@@ -1053,7 +1056,10 @@ mod tests {
         );
         let text = report.to_string();
         assert!(text.contains("intersect") && text.contains("frame:"));
-        assert!(text.contains("speed-up over it"), "the baseline ratio is printed");
+        assert!(
+            text.contains("speed-up over it"),
+            "the baseline ratio is printed"
+        );
     }
 
     #[test]

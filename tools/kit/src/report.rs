@@ -235,7 +235,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
         let tree_file =
             std::env::temp_dir().join(format!("wavefront-report-{}.kd", std::process::id()));
         let mut text = Vec::new();
-        tris.tree().write_text(&mut text)?; // the world's tree is the SAH one
+        tris.tree().write_text_in(&mut text, world.frame())?; // the world's (SAH) tree, in world coordinates
         write_file(&tree_file, &text)?;
         for (config, source) in [
             ("midpoint", TreeSource::Midpoint),
@@ -327,82 +327,124 @@ fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
 }
 
 /// The log-log scatter of RMSE against time, one colour per group.
+/// A tick value without trailing noise: `0.25`, `3`, `1e-3`.
+fn compact(x: f64) -> String {
+    if x != 0.0 && (x.abs() < 1e-2 || x.abs() >= 1e4) {
+        format!("{x:.0e}")
+    } else {
+        let s = format!("{x:.3}");
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    }
+}
+
+/// The report's figure: one panel per group (convergence, precision, robustness, kD builders),
+/// each on log-log axes with units; every point is named in a key beside its plot (marker colour,
+/// configuration, time, RMSE) instead of a label next to it, so no text can overlap.
 fn plot(report: &Report, path: &Path) -> Result<()> {
     use plotters::prelude::*;
 
     // Identical images have RMSE 0: plot them on a floor line.
     const FLOOR: f64 = 1e-3;
+    let fail = |e: &dyn std::fmt::Display| anyhow::anyhow!("plot: {e}");
     plotters::style::register_font("sans-serif", FontStyle::Normal, dejavu::sans::regular())
         .map_err(|_| anyhow::anyhow!("cannot load the plot font"))?;
-    let (w, h) = (1000u32, 640u32);
+    let (w, h) = (1400u32, 1000u32);
     let mut rgb = vec![255u8; (w * h * 3) as usize];
     {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
-        let xs: Vec<f64> = report.points.iter().map(|p| p.seconds.max(1e-4)).collect();
-        let (x0, x1) = (
-            xs.iter().cloned().fold(f64::INFINITY, f64::min) / 1.5,
-            xs.iter().cloned().fold(0.0, f64::max) * 1.5,
-        );
-        let y1 = report
-            .points
-            .iter()
-            .map(|p| p.diff.rmse)
-            .fold(1.0, f64::max)
-            * 2.0;
-        let mut chart = ChartBuilder::on(&root)
-            .caption("error against run time", ("sans-serif", 26))
-            .margin(16)
-            .x_label_area_size(46)
-            .y_label_area_size(70)
-            .build_cartesian_2d((x0..x1).log_scale(), (FLOOR / 2.0..y1).log_scale())
-            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-        chart
-            .configure_mesh()
-            .x_desc("run time (s, median)")
-            .y_desc("RMSE vs f64 reference (levels of 255; floor = identical)")
-            .label_style(("sans-serif", 15))
-            .draw()
-            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-        let groups = ["convergence", "precision", "robustness", "kd"];
-        let colours = [BLUE, GREEN, RED, MAGENTA];
-        for (g, colour) in groups.iter().zip(colours) {
-            let pts: Vec<_> = report
-                .points
-                .iter()
-                .filter(|p| p.group == *g)
-                .map(|p| {
-                    (
-                        p.seconds.max(1e-4),
-                        p.diff.rmse.max(FLOOR),
-                        format!("{} {}", p.scene, p.config),
-                    )
-                })
-                .collect();
+        let (title, body) = root.split_vertically(44);
+        title
+            .titled(
+                "error against run time (512 x 512 unless noted; RMSE against the f64 oracle)",
+                ("sans-serif", 24),
+            )
+            .map_err(|e| fail(&e))?;
+        let panels = body.split_evenly((2, 2));
+        let groups = [
+            ("convergence", "convergence: samples per pixel"),
+            ("precision", "precision: f32 wavefront vs f64"),
+            ("robustness", "robustness: numerical variants"),
+            ("kd", "kD builders (same image, different cost)"),
+        ];
+        let palette = [
+            RGBColor(31, 119, 180),
+            RGBColor(255, 127, 14),
+            RGBColor(44, 160, 44),
+            RGBColor(214, 39, 40),
+            RGBColor(148, 103, 189),
+            RGBColor(140, 86, 75),
+            RGBColor(227, 119, 194),
+            RGBColor(127, 127, 127),
+            RGBColor(188, 189, 34),
+            RGBColor(23, 190, 207),
+        ];
+        for (panel, (group, caption)) in panels.iter().zip(groups) {
+            let pts: Vec<&ReportPoint> =
+                report.points.iter().filter(|p| p.group == group).collect();
             if pts.is_empty() {
+                panel
+                    .titled(&format!("{caption}: not measured"), ("sans-serif", 18))
+                    .map_err(|e| fail(&e))?;
                 continue;
             }
-            if *g == "convergence" {
-                chart
-                    .draw_series(LineSeries::new(pts.iter().map(|p| (p.0, p.1)), colour))
-                    .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-            }
+            // The plot on the left, its key (one line per point) on the right: nothing overlaps.
+            let (width, _) = panel.dim_in_pixel();
+            let (area, key) = panel.split_horizontally(width * 11 / 20);
+            let xs: Vec<f64> = pts.iter().map(|p| p.seconds.max(1e-4)).collect();
+            let x0 = xs.iter().cloned().fold(f64::INFINITY, f64::min) / 2.0;
+            let x1 = xs.iter().cloned().fold(0.0, f64::max) * 2.0;
+            let y1 = pts.iter().map(|p| p.diff.rmse).fold(1.0, f64::max) * 3.0;
+            let mut chart = ChartBuilder::on(&area)
+                .caption(caption, ("sans-serif", 17))
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(64)
+                .build_cartesian_2d((x0..x1).log_scale(), (FLOOR / 2.0..y1).log_scale())
+                .map_err(|e| fail(&e))?;
             chart
-                .draw_series(pts.iter().map(|p| {
-                    EmptyElement::at((p.0, p.1))
-                        + Circle::new((0, 0), 5, colour.filled())
-                        + Text::new(p.2.clone(), (8, -6), ("sans-serif", 12))
-                }))
-                .map_err(|e| anyhow::anyhow!("plot: {e}"))?
-                .label(*g)
-                .legend(move |(x, y)| Circle::new((x, y), 5, colour.filled()));
+                .configure_mesh()
+                .x_desc("run time (s, median)")
+                .y_desc("RMSE (levels of 255)")
+                .x_labels(6)
+                .y_labels(6)
+                .x_label_formatter(&|x| compact(*x))
+                .y_label_formatter(&|y| compact(*y))
+                .label_style(("sans-serif", 13))
+                .draw()
+                .map_err(|e| fail(&e))?;
+            if group == "convergence" {
+                let line = pts
+                    .iter()
+                    .map(|p| (p.seconds.max(1e-4), p.diff.rmse.max(FLOOR)));
+                chart
+                    .draw_series(LineSeries::new(line, palette[7]))
+                    .map_err(|e| fail(&e))?;
+            }
+            let font = ("sans-serif", 12).into_font();
+            key.draw(&Text::new(
+                "point: configuration; time, RMSE",
+                (4, 40),
+                font.clone(),
+            ))
+            .map_err(|e| fail(&e))?;
+            for (i, p) in pts.iter().enumerate() {
+                let colour = palette[i % palette.len()];
+                let at = (p.seconds.max(1e-4), p.diff.rmse.max(FLOOR));
+                chart
+                    .draw_series(std::iter::once(Circle::new(at, 5, colour.filled())))
+                    .map_err(|e| fail(&e))?;
+                let y = 64 + 36 * i as i32;
+                key.draw(&Circle::new((10, y + 6), 5, colour.filled()))
+                    .map_err(|e| fail(&e))?;
+                let name = format!("{} {}", p.scene, p.config);
+                let figures = format!("{:.3} s, RMSE {:.3}", p.seconds, p.diff.rmse);
+                key.draw(&Text::new(name, (22, y), font.clone()))
+                    .map_err(|e| fail(&e))?;
+                key.draw(&Text::new(figures, (22, y + 16), font.clone()))
+                    .map_err(|e| fail(&e))?;
+            }
         }
-        chart
-            .configure_series_labels()
-            .background_style(WHITE.mix(0.8))
-            .border_style(BLACK)
-            .draw()
-            .map_err(|e| anyhow::anyhow!("plot: {e}"))?;
-        root.present().map_err(|e| anyhow::anyhow!("plot: {e}"))?;
+        root.present().map_err(|e| fail(&e))?;
     }
     wavefront::film::save_rgb8(path, w, h, &rgb)?;
     Ok(())
