@@ -1,23 +1,23 @@
 //! The `wavefront` command line (SPEC §9): argument parsing, I/O and printing only.
 
 mod farm;
+mod feedback;
 mod frames;
 mod merge;
 mod plan;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::frame::RenderFrame;
 use wavefront::mesh::{ObjMesh, TriangleMesh};
 use wavefront::scene::overrides::Overrides;
-use wavefront::{Pipeline, RenderOptions, Scene, World, load_scene, render};
+use wavefront::{Pipeline, RenderOptions, Scene, Stage, World, load_scene, render};
 
 #[derive(Parser)]
 #[command(
@@ -136,6 +136,9 @@ struct RenderArgs {
     /// Print per-stage statistics (rays in, rays out, time, Mrays/s).
     #[arg(long)]
     stats: bool,
+    /// No progress and no summary line: errors only.
+    #[arg(long, short)]
+    quiet: bool,
     /// Upper bound on samples traced per wave (bounds memory).
     #[arg(long, default_value_t = wavefront::schedule::DEFAULT_WAVE_SAMPLES)]
     wave_samples: usize,
@@ -235,6 +238,7 @@ fn run_plan(args: &SceneArgs) -> Result<()> {
 
 fn run_render(args: RenderArgs) -> Result<()> {
     let scene = scene_from(&args.scene)?;
+    let feedback = feedback::Feedback::new(args.quiet, args.stats);
     let jobs = plan::RenderPlan::new(&scene, &args.part, &args.output, |v| std::env::var(v).ok())?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
@@ -265,8 +269,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let start = Instant::now();
     pool.install(|| -> Result<()> {
         // One mesh load and one tree for every frame; each frame moves them to its own eye.
+        let loading = feedback.spinner(format!("loading {}", scene.name));
         let (world, setup) = World::load_timed(&scene)
             .with_context(|| format!("cannot load scene {}", scene.name))?;
+        loading.finish_and_clear();
         let world_seconds = start.elapsed().as_secs_f64();
         if args.stats
             && let Some(t) = world.triangles()
@@ -288,7 +294,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         };
         for job in todo {
             // `render` moves the world to this frame's eye (World::reframed) when it moved.
-            let bar = Progress::new();
+            let bar = feedback.progress();
             let (film, stats) = render(&job.scene, &world, options.clone(), |done, total| {
                 bar.update(done, total)
             });
@@ -300,6 +306,21 @@ fn run_render(args: RenderArgs) -> Result<()> {
             if jobs.announce {
                 println!("wrote {}", job.output.display());
             }
+            let image = &job.scene.image;
+            let rays = stats
+                .entries
+                .iter()
+                .filter(|((_, stage), _)| matches!(stage, Stage::Intersect | Stage::Shadow))
+                .map(|(_, e)| e.rays_in)
+                .sum();
+            feedback.summary(&feedback::Summary {
+                output: &job.output,
+                width: image.width,
+                height: image.height,
+                samples: image.samples,
+                seconds: start.elapsed().as_secs_f64(),
+                rays,
+            });
             if args.stats {
                 println!("{stats}");
                 println!(
@@ -378,39 +399,6 @@ fn run_report(args: &ReportArgs) -> Result<()> {
         args.output.display()
     );
     Ok(())
-}
-
-/// A progress bar that only appears once a render has run for a second.
-struct Progress {
-    bar: ProgressBar,
-    start: Instant,
-}
-
-impl Progress {
-    fn new() -> Progress {
-        let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
-        if let Ok(style) =
-            ProgressStyle::with_template("{bar:40} {percent:>3}% {elapsed} eta {eta}")
-        {
-            bar.set_style(style);
-        }
-        Progress {
-            bar,
-            start: Instant::now(),
-        }
-    }
-
-    fn update(&self, done: u64, total: u64) {
-        self.bar.set_length(total);
-        self.bar.set_position(done);
-        if self.bar.is_hidden() && self.start.elapsed() > Duration::from_secs(1) && done < total {
-            self.bar.set_draw_target(ProgressDrawTarget::stderr());
-        }
-    }
-
-    fn finish(&self) {
-        self.bar.finish_and_clear();
-    }
 }
 
 /// Reads an OBJ mesh in f64 and moves it into the frame centred on its bounds, where a tree is

@@ -319,3 +319,46 @@ fn the_cli_rejects_mutated_scenes_cleanly() {
         .collect();
     assert!(leftovers.is_empty(), "partial files left: {leftovers:?}");
 }
+
+#[test]
+fn without_a_terminal_a_successful_render_prints_nothing_unless_asked() {
+    let dir = Scratch::new("quiet-pipe");
+    let o = dir.run(&["render", "-o", "a.png", "--samples", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(stderr(&o), "", "stderr is a pipe: errors only");
+    assert_eq!(stdout(&o), "");
+    let o = dir.run(&["render", "-o", "b.png", "--stats"]);
+    let err = stderr(&o);
+    assert!(
+        err.starts_with("wrote b.png: 512x512, 1 spp, ") && err.trim_end().ends_with("Mrays/s"),
+        "--stats asks for the summary line: {err}"
+    );
+}
+
+/// Runs the binary under a pseudo-terminal (util-linux `script`) in `dir`; returns what the
+/// terminal showed.
+fn run_in_terminal(dir: &Scratch, args: &str) -> String {
+    let command = format!("{} {args}", env!("CARGO_BIN_EXE_wavefront"));
+    let o = Command::new("script")
+        .args(["-qec", &command, "/dev/null"])
+        .current_dir(dir.path())
+        .output()
+        .expect("util-linux `script` runs the binary under a pseudo-terminal");
+    assert!(o.status.success(), "{}", stderr(&o));
+    stdout(&o)
+}
+
+#[test]
+fn on_a_terminal_a_render_ends_with_one_summary_line_and_quiet_silences_it() {
+    let dir = Scratch::new("terminal");
+    let shown = run_in_terminal(&dir, "render -o a.png --samples 4");
+    let lines: Vec<&str> = shown
+        .lines()
+        .filter(|l| l.contains("wrote a.png"))
+        .collect();
+    assert_eq!(lines.len(), 1, "one summary line: {shown:?}");
+    assert!(lines[0].contains("512x512, 4 spp"), "{shown:?}");
+    let quiet = run_in_terminal(&dir, "render -o b.png --quiet");
+    assert!(!quiet.contains("wrote"), "--quiet: {quiet:?}");
+    assert!(dir.path().join("b.png").exists());
+}
