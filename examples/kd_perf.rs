@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use wavefront::accel::kdtree::{BuildMethod, KdTree, TriHit};
+use wavefront::accel::kdtree::{BuildMethod, KdAccel, KdTree, TriHit};
 use wavefront::mesh::TriangleMesh;
 
 fn best_of<T>(reps: usize, mut f: impl FnMut() -> T) -> (f64, T) {
@@ -87,9 +87,10 @@ fn main() {
         if method == BuildMethod::Midpoint {
             continue;
         }
+        let tree = KdAccel::new(tree, &mesh);
         let rays = primary_rays();
         let n = rays.len() as f64;
-        let closest = |&(o, d): &(Vec3, Vec3)| tree.intersect_closest(&mesh, o, d, f32::INFINITY);
+        let closest = |&(o, d): &(Vec3, Vec3)| tree.intersect_closest(o, d, f32::INFINITY);
         let (c1, hits) =
             p1.install(|| best_of(reps, || rays.iter().map(closest).collect::<Vec<_>>()));
         let (c2, hits2) = p2.install(|| {
@@ -117,7 +118,7 @@ fn main() {
             })
             .collect();
         let ns = shadow.len() as f64;
-        let occ = |&(o, d): &(Vec3, Vec3)| tree.intersect_occluded(&mesh, o, d, 1.0);
+        let occ = |&(o, d): &(Vec3, Vec3)| tree.intersect_occluded(o, d, 1.0);
         let (o1, occl) =
             p1.install(|| best_of(reps, || shadow.iter().map(occ).collect::<Vec<_>>()));
         let (o2, occl2) = p2.install(|| {
@@ -136,7 +137,7 @@ fn main() {
         let ptm = vec![f32::INFINITY; rays.len()];
         let closest_batch = |o: &[Vec3], d: &[Vec3], tm: &[f32]| {
             let (mut t, mut tri) = (vec![0.0; o.len()], vec![0u32; o.len()]);
-            tree.intersect_closest_batch(&mesh, o, d, tm, &mut t, &mut tri);
+            tree.intersect_closest_batch(o, d, tm, &mut t, &mut tri);
             t.into_iter()
                 .zip(tri)
                 .map(|(t, tri)| (tri != u32::MAX).then_some(TriHit { t, tri }))
@@ -156,7 +157,7 @@ fn main() {
         let stm = vec![1.0f32; shadow.len()];
         let occ_batch = |o: &[Vec3], d: &[Vec3], tm: &[f32]| {
             let mut out = vec![false; o.len()];
-            tree.intersect_occluded_batch(&mesh, o, d, tm, &mut out);
+            tree.intersect_occluded_batch(o, d, tm, &mut out);
             out
         };
         let (ob1, bo) = p1.install(|| best_of(reps, || occ_batch(&so, &sd, &stm)));

@@ -243,7 +243,7 @@ pub fn measure(settings: &ReportSettings, mut log: impl FnMut(&str)) -> Result<R
         let tree_file =
             std::env::temp_dir().join(format!("wavefront-report-{}.kd", std::process::id()));
         let mut text = Vec::new();
-        tris.tree.write_text(&mut text)?; // the world's tree is the SAH one
+        tris.tree.tree().write_text(&mut text)?; // the world's tree is the SAH one
         write_file(&tree_file, &text)?;
         for (config, source) in [
             ("midpoint", TreeSource::Midpoint),

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use crate::accel::kdtree::{BuildMethod, KdTree};
+use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
 use crate::error::{LoadError, SceneError};
 use crate::geometry::offset::{EXACT_POINT_ULPS, RAY_POINT_ULPS, offset_origin};
 use crate::geometry::{plane, sphere};
@@ -47,8 +47,8 @@ pub struct Triangles {
     pub mesh: TriangleMesh,
     /// Material of each triangle (one entry per mesh: `(first triangle, material)`).
     pub material_ranges: Vec<(u32, u32)>,
-    /// The kD tree over `mesh`.
-    pub tree: KdTree,
+    /// The kD tree over `mesh`, prepared for traversal.
+    pub tree: KdAccel,
     /// Where the tree came from.
     pub source: TreeSource,
     /// Seconds spent loading the OBJ files.
@@ -107,6 +107,7 @@ impl World {
     /// Builds a world around an already loaded mesh and tree (for tests and benchmarks).
     pub fn with_mesh(scene: &Scene, mesh: TriangleMesh, tree: KdTree) -> World {
         let material = scene.meshes.first().map_or(0, |m| m.material);
+        let tree = KdAccel::new(tree, &mesh);
         World {
             spheres: scene.spheres.clone(),
             planes: scene.planes.clone(),
@@ -168,7 +169,7 @@ impl World {
         if let Some(tris) = &self.triangles
             && let Some(h) =
                 tris.tree
-                    .intersect_closest_with(&tris.mesh, o, d, best_t, self.robustness.triangle)
+                    .intersect_closest_with(o, d, best_t, self.robustness.triangle)
         {
             best_t = h.t;
             best = PrimId(self.triangle_base() + h.tri);
@@ -194,13 +195,13 @@ impl World {
                 .any(|p| plane::intersect(o, d, p.point, p.normal, t_max).is_some())
             || self.triangles.as_ref().is_some_and(|t| {
                 t.tree
-                    .intersect_occluded_with(&t.mesh, o, d, t_max, self.robustness.triangle)
+                    .intersect_occluded_with(o, d, t_max, self.robustness.triangle)
             })
     }
 
     /// [`World::intersect_closest`] for many rays, bit-identical to it row for row: `out_t[i]`,
     /// `out_prim[i]` receive ray `i`'s answer. Mesh-only scenes with the watertight test go
-    /// through [`KdTree::intersect_closest_batch`] (4-ray packets); others ray by ray.
+    /// through [`KdAccel::intersect_closest_batch`] (4-ray packets); others ray by ray.
     /// Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
@@ -218,7 +219,7 @@ impl World {
                 // and a miss (`u32::MAX`) is `PrimId::NONE`.
                 let tri: &mut [u32] = bytemuck::cast_slice_mut(out_prim);
                 t.tree
-                    .intersect_closest_batch(&t.mesh, origins, dirs, t_max, out_t, tri);
+                    .intersect_closest_batch(origins, dirs, t_max, out_t, tri);
             }
             _ => {
                 for i in 0..n {
@@ -230,7 +231,7 @@ impl World {
 
     /// [`World::intersect_occluded`] for many rays into `out`, bit-identical to it row for row
     /// (mesh-only scenes with the watertight test go through
-    /// [`KdTree::intersect_occluded_batch`]). Panics if the slices' lengths differ.
+    /// [`KdAccel::intersect_occluded_batch`]). Panics if the slices' lengths differ.
     pub fn intersect_occluded_batch(
         &self,
         origins: &[Vec3],
@@ -242,8 +243,7 @@ impl World {
         assert!(dirs.len() == n && t_max.len() == n && out.len() == n);
         match &self.triangles {
             Some(t) if self.mesh_only_watertight() => {
-                t.tree
-                    .intersect_occluded_batch(&t.mesh, origins, dirs, t_max, out);
+                t.tree.intersect_occluded_batch(origins, dirs, t_max, out);
             }
             _ => {
                 for i in 0..n {
@@ -254,7 +254,7 @@ impl World {
     }
 
     /// True when the world's only primitives are triangles, tested with the watertight test
-    /// (what the batch kernels of [`KdTree`] compute).
+    /// (what the batch kernels of [`KdAccel`] compute).
     fn mesh_only_watertight(&self) -> bool {
         self.spheres.is_empty()
             && self.planes.is_empty()
@@ -325,6 +325,7 @@ fn load_triangles(scene: &Scene) -> Result<Triangles, LoadError> {
         TreeSource::Midpoint => KdTree::build(&mesh, BuildMethod::Midpoint),
         TreeSource::File(path) => KdTree::load_text(path, mesh.len())?,
     };
+    let tree = KdAccel::new(tree, &mesh);
     Ok(Triangles {
         mesh,
         material_ranges,

@@ -300,7 +300,6 @@ impl KdTree {
             tri_indices,
             root,
             triangle_count,
-            prepared: Default::default(),
         })
     }
 
