@@ -23,6 +23,10 @@
 //! one schedule ([`schedule`]) orders them. Each scene gets only the stages it needs
 //! ([`schedule::Pipeline`]). Images are bit-identical for any thread count: every queue stays in
 //! sample order and every sample is accumulated in schedule order.
+//!
+//! `unsafe` code is denied crate-wide; the SSE2 lanes of the kD-tree packet traversal
+//! (`accel::kdtree::simd`) and the Embree FFI peer (`peer::embree`, behind a feature) opt out.
+#![deny(unsafe_code)]
 
 pub mod accel;
 pub mod error;

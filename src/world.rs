@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use crate::accel::kdtree::{BuildMethod, KdTree};
+use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
 use crate::error::{LoadError, SceneError};
 use crate::frame::{Light, Plane, RenderFrame, Sphere};
 use crate::geometry::offset::{gamma, offset_fixed, offset_ray_origin};
@@ -50,8 +50,8 @@ pub struct Triangles {
     world_positions: Vec<[f64; 3]>,
     /// Material of each triangle (one entry per mesh: `(first triangle, material)`).
     material_ranges: Vec<(u32, u32)>,
-    /// The kD tree over `mesh`.
-    tree: KdTree,
+    /// The kD tree over `mesh`, prepared for traversal (leaf-ordered triangle copy).
+    tree: KdAccel,
     /// Where the tree came from.
     source: TreeSource,
 }
@@ -73,7 +73,7 @@ impl Triangles {
 
     /// The kD tree over [`Triangles::mesh`].
     pub fn tree(&self) -> &KdTree {
-        &self.tree
+        self.tree.tree()
     }
 
     /// Where the tree came from.
@@ -155,18 +155,22 @@ impl World {
     /// renders (the closest hit does not depend on the tree).
     pub fn reframed(&self, scene: &Scene) -> World {
         let frame = RenderFrame::at(scene.camera.eye);
-        let triangles = self.triangles.as_ref().map(|t| Triangles {
-            mesh: TriangleMesh::new(
+        let triangles = self.triangles.as_ref().map(|t| {
+            let mesh = TriangleMesh::new(
                 t.world_positions
                     .iter()
                     .map(|&p| frame.point(p.into()).to_array())
                     .collect(),
                 t.mesh.indices.clone(),
-            ),
-            world_positions: t.world_positions.clone(),
-            material_ranges: t.material_ranges.clone(),
-            tree: t.tree.reframed(&self.frame, &frame),
-            source: t.source.clone(),
+            );
+            let tree = KdAccel::new(t.tree.tree().reframed(&self.frame, &frame), &mesh);
+            Triangles {
+                mesh,
+                world_positions: t.world_positions.clone(),
+                material_ranges: t.material_ranges.clone(),
+                tree,
+                source: t.source.clone(),
+            }
         });
         World::analytic(scene, frame, triangles)
     }
@@ -212,7 +216,7 @@ impl World {
             .map(|&p| frame.point(p.into()).to_array())
             .collect();
         let mesh = TriangleMesh::new(vertices, mesh.indices.clone());
-        let tree = KdTree::build(&mesh, method);
+        let tree = KdAccel::new(KdTree::build(&mesh, method), &mesh);
         let material = scene.meshes.first().map_or(0, |m| m.material);
         let triangles = Triangles {
             mesh,
@@ -268,7 +272,7 @@ impl World {
         if let Some(tris) = &self.triangles
             && let Some(h) =
                 tris.tree
-                    .intersect_closest_with(&tris.mesh, o, d, best_t, self.robustness.triangle)
+                    .intersect_closest_with(o, d, best_t, self.robustness.triangle)
         {
             best_t = h.t;
             best = PrimId(self.triangle_base() + h.tri);
@@ -294,13 +298,13 @@ impl World {
                 .any(|p| plane::intersect(o, d, p.point, p.normal, t_max).is_some())
             || self.triangles.as_ref().is_some_and(|t| {
                 t.tree
-                    .intersect_occluded_with(&t.mesh, o, d, t_max, self.robustness.triangle)
+                    .intersect_occluded_with(o, d, t_max, self.robustness.triangle)
             })
     }
 
     /// [`World::intersect_closest`] for many rays, bit-identical to it row for row: `out_t[i]`,
     /// `out_prim[i]` receive ray `i`'s answer. Mesh-only scenes with the watertight test go
-    /// through [`KdTree::intersect_closest_batch`] (4-ray packets); others ray by ray.
+    /// through [`KdAccel::intersect_closest_batch`] (4-ray packets); others ray by ray.
     /// Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
@@ -318,7 +322,7 @@ impl World {
                 // and a miss (`u32::MAX`) is `PrimId::NONE`.
                 let tri: &mut [u32] = bytemuck::cast_slice_mut(out_prim);
                 t.tree
-                    .intersect_closest_batch(&t.mesh, origins, dirs, t_max, out_t, tri);
+                    .intersect_closest_batch(origins, dirs, t_max, out_t, tri);
             }
             _ => {
                 for i in 0..n {
@@ -330,7 +334,7 @@ impl World {
 
     /// [`World::intersect_occluded`] for many rays into `out`, bit-identical to it row for row
     /// (mesh-only scenes with the watertight test go through
-    /// [`KdTree::intersect_occluded_batch`]). Panics if the slices' lengths differ.
+    /// [`KdAccel::intersect_occluded_batch`]). Panics if the slices' lengths differ.
     pub fn intersect_occluded_batch(
         &self,
         origins: &[Vec3],
@@ -342,8 +346,7 @@ impl World {
         assert!(dirs.len() == n && t_max.len() == n && out.len() == n);
         match &self.triangles {
             Some(t) if self.mesh_only_watertight() => {
-                t.tree
-                    .intersect_occluded_batch(&t.mesh, origins, dirs, t_max, out);
+                t.tree.intersect_occluded_batch(origins, dirs, t_max, out);
             }
             _ => {
                 for i in 0..n {
@@ -354,7 +357,7 @@ impl World {
     }
 
     /// True when the world's only primitives are triangles, tested with the watertight test
-    /// (what the batch kernels of [`KdTree`] compute).
+    /// (what the batch kernels of [`KdAccel`] compute).
     fn mesh_only_watertight(&self) -> bool {
         self.spheres.is_empty()
             && self.planes.is_empty()
@@ -438,6 +441,7 @@ fn load_triangles(
         TreeSource::Midpoint => KdTree::build(&mesh, BuildMethod::Midpoint),
         TreeSource::File(path) => KdTree::load_text_in(path, mesh.len(), frame)?,
     };
+    let tree = KdAccel::new(tree, &mesh);
     let times = SetupTimes {
         load_seconds,
         tree_seconds: start.elapsed().as_secs_f64(),

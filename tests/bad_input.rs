@@ -152,7 +152,7 @@ proptest! {
     fn mutated_tree_files_load_or_name_file_and_line(
         muts in prop::collection::vec((any::<u8>(), any::<usize>(), any::<usize>(), any::<usize>()), 1..4)
     ) {
-        use wavefront::accel::kdtree::{BuildMethod, KdTree};
+        use wavefront::accel::kdtree::{BuildMethod, KdAccel, KdTree};
         let dir = temp_dir("tree");
         let obj = dir.join("m.obj");
         std::fs::write(&obj, CUBE_OBJ).unwrap();
@@ -168,7 +168,8 @@ proptest! {
             // Whatever loads can be traced without panicking, and validate() judges it.
             Ok(tree) => {
                 let _ = tree.validate(&mesh);
-                let _ = tree.intersect_closest(&mesh, glam::Vec3::ZERO, glam::Vec3::X, f32::INFINITY);
+                let tree = KdAccel::new(tree, &mesh);
+                let _ = tree.intersect_closest(glam::Vec3::ZERO, glam::Vec3::X, f32::INFINITY);
             }
             Err(e) => assert_names_file(&e.to_string(), &path, &text),
         }

@@ -4,7 +4,7 @@
 
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
-use wavefront::accel::kdtree::{BuildMethod, KdTree, TriHit};
+use wavefront::accel::kdtree::{BuildMethod, KdAccel, KdTree, TriHit};
 use wavefront::geometry::triangle::{intersect_all_closest, intersect_all_occluded};
 use wavefront::mesh::TriangleMesh;
 use wavefront_kit::testkit::Rng;
@@ -39,9 +39,9 @@ fn grid() -> TriangleMesh {
     TriangleMesh::new(vertices, indices)
 }
 
-fn trace_all(tree: &KdTree, mesh: &TriangleMesh, rays: &[(Vec3, Vec3)]) -> Vec<Option<TriHit>> {
+fn trace_all(tree: &KdAccel, rays: &[(Vec3, Vec3)]) -> Vec<Option<TriHit>> {
     rays.par_iter()
-        .map(|&(o, d)| tree.intersect_closest(mesh, o, d, f32::INFINITY))
+        .map(|&(o, d)| tree.intersect_closest(o, d, f32::INFINITY))
         .collect()
 }
 
@@ -51,7 +51,7 @@ fn a_far_grid_plane_has_no_cracks() {
     assert_eq!(mesh.len(), 80_000);
     let trees: Vec<_> = [BuildMethod::Sah, BuildMethod::Midpoint]
         .into_iter()
-        .map(|m| (m, KdTree::build(&mesh, m)))
+        .map(|m| (m, KdAccel::new(KdTree::build(&mesh, m), &mesh)))
         .collect();
 
     // 10^6 rays from 3 units in front of the plane to random points inside it.
@@ -64,7 +64,7 @@ fn a_far_grid_plane_has_no_cracks() {
         })
         .collect();
     for (method, tree) in &trees {
-        let misses = trace_all(tree, &mesh, &rays)
+        let misses = trace_all(tree, &rays)
             .iter()
             .filter(|h| h.is_none())
             .count();
@@ -96,10 +96,7 @@ fn a_far_grid_plane_has_no_cracks() {
             }
         }
     }
-    let answers: Vec<_> = trees
-        .iter()
-        .map(|(_, t)| trace_all(t, &mesh, &exact))
-        .collect();
+    let answers: Vec<_> = trees.iter().map(|(_, t)| trace_all(t, &exact)).collect();
     for (method, hits) in trees.iter().map(|(m, _)| m).zip(&answers) {
         let misses = hits.iter().filter(|h| h.is_none()).count();
         assert_eq!(
@@ -116,7 +113,7 @@ fn a_far_grid_plane_has_no_cracks() {
         .num_threads(1)
         .build()
         .unwrap();
-    let single = pool.install(|| trace_all(&trees[0].1, &mesh, &exact));
+    let single = pool.install(|| trace_all(&trees[0].1, &exact));
     assert_eq!(
         single, answers[0],
         "thread count changed the chosen triangle"
@@ -166,7 +163,7 @@ fn degenerate_triangles_are_never_hit_and_never_produce_nan() {
     let indices = vec![[0, 1, 2], [3, 3, 4], [3, 4, 4], [5, 6, 7]];
     let mesh = TriangleMesh::new(vertices, indices);
     for method in [BuildMethod::Sah, BuildMethod::Midpoint] {
-        let tree = KdTree::build(&mesh, method);
+        let tree = KdAccel::new(KdTree::build(&mesh, method), &mesh);
         let mut rng = Rng(99);
         let (mut needle_hits, mut clear_misses) = (0, 0);
         for k in 0..200_000 {
@@ -178,7 +175,7 @@ fn degenerate_triangles_are_never_hit_and_never_produce_nan() {
             };
             let o = Vec3::new(0.3, 0.2, 2.0) + Vec3::new(rng.unit(), rng.unit(), 0.0);
             let d = target - o;
-            if let Some(h) = tree.intersect_closest(&mesh, o, d, f32::INFINITY) {
+            if let Some(h) = tree.intersect_closest(o, d, f32::INFINITY) {
                 assert!(h.t.is_finite() && h.t > 0.0, "bad t {}", h.t);
                 assert_eq!(h.tri, 3, "a zero-area triangle was hit ({method:?})");
                 // f32 inputs near 1 are only known to ~1.2e-7; a hit may stray from the exact
@@ -190,7 +187,7 @@ fn degenerate_triangles_are_never_hit_and_never_produce_nan() {
                 clear_misses += 1;
             }
             assert_eq!(
-                tree.intersect_occluded(&mesh, o, d, f32::INFINITY),
+                tree.intersect_occluded(o, d, f32::INFINITY),
                 intersect_all_occluded(&mesh, o, d, f32::INFINITY)
             );
         }
@@ -229,10 +226,8 @@ fn subnormal_and_signed_zero_directions_match_brute_force() {
     let mesh = soup(3000, 5);
     let tiny = f32::from_bits(1); // smallest subnormal
     let sub = 1e-40f32;
-    let trees = [
-        KdTree::build(&mesh, BuildMethod::Sah),
-        KdTree::build(&mesh, BuildMethod::Midpoint),
-    ];
+    let trees = [BuildMethod::Sah, BuildMethod::Midpoint]
+        .map(|method| KdAccel::new(KdTree::build(&mesh, method), &mesh));
     let mut rng = Rng(11);
     let mut hits = 0;
     for k in 0..20_000 {
@@ -245,7 +240,7 @@ fn subnormal_and_signed_zero_directions_match_brute_force() {
         let expected = intersect_all_closest(&mesh, o, d, f32::INFINITY);
         for tree in &trees {
             let got = tree
-                .intersect_closest(&mesh, o, d, f32::INFINITY)
+                .intersect_closest(o, d, f32::INFINITY)
                 .map(|h| (h.t.to_bits(), h.tri));
             assert_eq!(
                 got,
@@ -253,7 +248,7 @@ fn subnormal_and_signed_zero_directions_match_brute_force() {
                 "ray {o} {d:?}"
             );
             assert_eq!(
-                tree.intersect_occluded(&mesh, o, d, f32::INFINITY),
+                tree.intersect_occluded(o, d, f32::INFINITY),
                 expected.is_some()
             );
         }
@@ -268,7 +263,7 @@ fn subnormal_and_signed_zero_directions_match_brute_force() {
 #[test]
 fn poisoned_rays_terminate_and_miss_in_the_tree() {
     let mesh = soup(3000, 6);
-    let tree = KdTree::build(&mesh, BuildMethod::Sah);
+    let tree = KdAccel::new(KdTree::build(&mesh, BuildMethod::Sah), &mesh);
     let bad = [f32::NAN, f32::INFINITY, f32::NEG_INFINITY];
     for &b in &bad {
         for (o, d) in [
@@ -277,15 +272,8 @@ fn poisoned_rays_terminate_and_miss_in_the_tree() {
             (Vec3::new(0.5, 0.5, -1.0), Vec3::splat(b)),
             (Vec3::new(0.5, 0.5, -1.0), Vec3::ZERO),
         ] {
-            assert_eq!(
-                tree.intersect_closest(&mesh, o, d, f32::INFINITY),
-                None,
-                "{o} {d}"
-            );
-            assert!(
-                !tree.intersect_occluded(&mesh, o, d, f32::INFINITY),
-                "{o} {d}"
-            );
+            assert_eq!(tree.intersect_closest(o, d, f32::INFINITY), None, "{o} {d}");
+            assert!(!tree.intersect_occluded(o, d, f32::INFINITY), "{o} {d}");
         }
     }
 }

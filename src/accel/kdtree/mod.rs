@@ -2,28 +2,29 @@
 //!
 //! Split like Embree/obvhs: [`node`] (8-byte node layout), `build_midpoint` (the assignment's
 //! longest-axis midpoint rule), `build_sah` (Wald & Havran 2006, O(N log N), the default),
-//! `traverse` (closest and occluded queries), `text` (the SPEC §6 text format), `validate` and
-//! `stats`. The tree reads mesh vertices and triangle indices; queries read one ray (origin,
-//! unnormalised direction, `t_max`) and write a [`TriHit`] or a shadow bit.
+//! `traverse` ([`KdAccel`]: closest and occluded queries), `simd` (the SSE2 lanes the packet
+//! traversal uses, the only `unsafe` code of the crate's kernels), `text` (the SPEC §6 text
+//! format), `validate` and `stats`. The builders read mesh vertices and triangle indices and
+//! write a [`KdTree`] (structure only); [`KdAccel::new`] reads a tree and its mesh and writes the
+//! traversal-ready copy; queries read one ray (origin, unnormalised direction, `t_max`) and
+//! write a [`TriHit`] or a shadow bit.
 //!
 //! Tree layout: nodes in depth-first pre-order (left child = next node, right child stored in
 //! the node), leaves referring to a contiguous run of a triangle-index list. Degenerate
 //! triangles ([`TriangleMesh::is_degenerate`]) are left out of every tree, so they are never
-//! hit. The tree keeps its own copy of the triangle vertices in leaf order (built on first use
-//! for trees read from text), so traversal touches one contiguous array.
+//! hit. A [`KdTree`] holds no mesh data; [`KdAccel`] adds a copy of the triangle vertices in
+//! leaf order, so traversal touches one contiguous array.
 
 mod build_midpoint;
 mod build_sah;
 pub mod node;
 mod overlap;
 mod reframe;
+mod simd;
 mod stats;
 mod text;
-#[allow(unsafe_code)] // until the SIMD module holds every unsafe block
 mod traverse;
 mod validate;
-
-use std::sync::OnceLock;
 
 use glam::Vec3;
 
@@ -32,6 +33,7 @@ pub use node::KdNode;
 use overlap::Aabb;
 pub use stats::KdStats;
 pub use text::TreeError;
+pub use traverse::KdAccel;
 
 /// Deepest tree the builders produce (the SAH builder also stops at `8 + 1.3·log2 N`, as pbrt).
 pub const MAX_BUILD_DEPTH: usize = 40;
@@ -61,8 +63,9 @@ pub struct TriHit {
     pub tri: u32,
 }
 
-/// A kD tree over a triangle mesh. See the module docs for the layout.
-#[derive(Clone, Debug)]
+/// A kD tree over a triangle mesh (structure only: it holds no vertices). See the module docs
+/// for the layout; trace rays through [`KdAccel`].
+#[derive(Clone, Debug, PartialEq)]
 pub struct KdTree {
     /// Nodes in depth-first pre-order; node 0 is the root.
     pub(crate) nodes: Vec<KdNode>,
@@ -72,29 +75,6 @@ pub struct KdTree {
     pub(crate) root: Aabb,
     /// Number of triangles of the mesh the tree refers to (bound on every index).
     pub(crate) triangle_count: usize,
-    /// Per-mesh data cached for traversal (exact root box and vertices in leaf order).
-    pub(crate) prepared: OnceLock<Prepared>,
-}
-
-/// Data cached for traversal, derived from the tree and the mesh.
-#[derive(Clone, Debug)]
-pub(crate) struct Prepared {
-    /// Exact root box used by traversal: mesh bounds joined with the stored root box.
-    pub(crate) root: Aabb,
-    /// Vertices of `tri_indices[i]` at index `i`: leaf order, for cache locality.
-    pub(crate) tris: Vec<[[f32; 3]; 3]>,
-    /// Vertex count of the mesh this was built for (debug check against misuse).
-    pub(crate) vertex_count: usize,
-}
-
-impl PartialEq for KdTree {
-    /// Same nodes, same triangle lists, same root box (cached data is ignored).
-    fn eq(&self, other: &KdTree) -> bool {
-        self.nodes == other.nodes
-            && self.tri_indices == other.tri_indices
-            && self.root == other.root
-            && self.triangle_count == other.triangle_count
-    }
 }
 
 /// Builder output before flattening into [`KdNode`]s.
@@ -120,7 +100,7 @@ impl KdTree {
             .filter(|&k| !mesh.is_degenerate(k))
             .map(|k| k as u32)
             .collect();
-        let mut out = match method {
+        match method {
             BuildMethod::Midpoint => {
                 KdTree::from_build(&build_midpoint::build(mesh, root, tris), root, mesh.len())
             }
@@ -131,12 +111,9 @@ impl KdTree {
                     tri_indices: flat.tris,
                     root,
                     triangle_count: mesh.len(),
-                    prepared: OnceLock::new(),
                 }
             }
-        };
-        out.prepared = OnceLock::from(Prepared::new(&out, mesh));
-        out
+        }
     }
 
     /// Flattens a builder tree into pre-order nodes.
@@ -173,7 +150,6 @@ impl KdTree {
             tri_indices,
             root,
             triangle_count,
-            prepared: OnceLock::new(),
         }
     }
 
@@ -197,18 +173,6 @@ impl KdTree {
         let start = n.offset() as usize;
         &self.tri_indices[start..start + n.count() as usize]
     }
-
-    /// Traversal data for `mesh`, built on first use.
-    #[inline]
-    pub(crate) fn prepared(&self, mesh: &TriangleMesh) -> &Prepared {
-        let p = self.prepared.get_or_init(|| Prepared::new(self, mesh));
-        debug_assert_eq!(
-            p.vertex_count,
-            mesh.vertices.len(),
-            "tree used with another mesh"
-        );
-        p
-    }
 }
 
 /// Root box used for traversal and validation: the stored root box joined with the mesh bounds.
@@ -220,24 +184,6 @@ pub(crate) fn exact_root(tree: &KdTree, mesh: &TriangleMesh) -> Aabb {
         r.1[k] = r.1[k].max(hi[k]);
     }
     r
-}
-
-impl Prepared {
-    fn new(tree: &KdTree, mesh: &TriangleMesh) -> Prepared {
-        let tris = tree
-            .tri_indices
-            .iter()
-            .map(|&k| {
-                let idx = mesh.indices.get(k as usize).copied().unwrap_or([0; 3]);
-                idx.map(|i| mesh.vertices.get(i as usize).copied().unwrap_or([0.0; 3]))
-            })
-            .collect();
-        Prepared {
-            root: exact_root(tree, mesh),
-            tris,
-            vertex_count: mesh.vertices.len(),
-        }
-    }
 }
 
 /// The two children boxes of `bx` split on `axis` at `split`.

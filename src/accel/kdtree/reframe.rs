@@ -7,7 +7,7 @@ use crate::frame::RenderFrame;
 
 impl KdTree {
     /// This tree (built or read in frame `from`) in frame `to`. Triangle lists are unchanged;
-    /// traversal data is rebuilt for the mesh it is next used with.
+    /// wrap it in a [`super::KdAccel`] with the mesh in the new frame to trace it.
     pub fn reframed(&self, from: &RenderFrame, to: &RenderFrame) -> KdTree {
         let move_to = |axis: usize, x: f32| to.coordinate(axis, from.world_coordinate(axis, x));
         let nodes = self
@@ -30,7 +30,6 @@ impl KdTree {
                 std::array::from_fn(|k| move_to(k, hi[k])),
             ),
             triangle_count: self.triangle_count,
-            prepared: Default::default(),
         }
     }
 }

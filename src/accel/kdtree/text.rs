@@ -314,7 +314,6 @@ impl KdTree {
             tri_indices,
             root,
             triangle_count,
-            prepared: Default::default(),
         })
     }
 

@@ -1,0 +1,463 @@
+//! The node-interval step, written once: which children of an inner node a ray enters and over
+//! which part of its `[t0, t1]` interval, with the `δ` and `SLACK` tolerances.
+//!
+//! Reads one inner node's split (axis value) and a ray's origin, reciprocal direction and slack
+//! on that axis plus its current interval; writes a [`Step`]. Generic over [`Lanes`]: `f32` for
+//! the single-ray loop, [`F32x4`] for the 4-ray packet loop, so both make exactly the same
+//! decisions and compute the same interval bits lane by lane (the `f32` operations have the
+//! SSE2 instructions' semantics, see [`crate::accel::kdtree::simd`]). The formula is written as
+//! its three cases (the sign of the plane distance, or NaN): the single-ray loop branches on the
+//! case, the packet loop computes all three and blends them per lane ([`Lanes::by_sign`]).
+
+use std::ops::{Add, BitAnd, BitOr, Mul, Sub};
+
+use crate::accel::kdtree::simd::{F32x4, M32x4, max_ps, min_ps};
+
+/// Relative slack on ray-interval comparisons (plane distances and hit `t` carry a few ulps).
+pub(super) const SLACK: f32 = 1e-4;
+/// `1 + SLACK`: `a <= b · HI` is "`a` is not beyond `b` by more than the slack".
+pub(super) const HI: f32 = 1.0 + SLACK;
+/// World-space slack around split planes, relative to the distance from the ray origin to the
+/// farthest root corner (the per-ray `δ`, see the module docs of `traverse`).
+pub(super) const DELTA: f32 = 1.0 / (1 << 18) as f32;
+
+/// The operations the interval step needs, with SSE2 semantics (`min`/`max` are `minps`/`maxps`:
+/// the second operand when either is NaN). Implemented by `f32` (mask `bool`) and [`F32x4`].
+pub(super) trait Lanes:
+    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self>
+{
+    /// Per-lane truth values.
+    type Mask: Copy + BitAnd<Output = Self::Mask> + BitOr<Output = Self::Mask>;
+    /// All lanes `x`.
+    fn splat(x: f32) -> Self;
+    /// `self` where `self < o`, else `o`.
+    fn min(self, o: Self) -> Self;
+    /// `self` where `self > o`, else `o`.
+    fn max(self, o: Self) -> Self;
+    /// `self < o`.
+    fn lt(self, o: Self) -> Self::Mask;
+    /// `self <= o`.
+    fn le(self, o: Self) -> Self::Mask;
+    /// `self > o`.
+    fn gt(self, o: Self) -> Self::Mask;
+    /// `self == o`.
+    fn eq(self, o: Self) -> Self::Mask;
+    /// `m & !n`.
+    fn and_not(m: Self::Mask, n: Self::Mask) -> Self::Mask;
+    /// `a` where `m`, else `b`.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// `a` where `m`, else `b`.
+    fn select_mask(m: Self::Mask, a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// A mask with no lane set.
+    fn none() -> Self::Mask;
+    /// A mask with every lane set.
+    fn all() -> Self::Mask;
+
+    /// Per lane, `pos()` where `tp > 0`, `nonpos()` where `tp <= 0` and `nan()` where `tp` is
+    /// NaN. Scalars branch and evaluate one case (a predicted branch keeps the single-ray
+    /// loop's dependency chains short, measured: a branch-free scalar step is ~20 % slower);
+    /// lanes evaluate all three and blend (the default).
+    #[inline(always)]
+    fn by_sign(
+        tp: Self,
+        pos: impl FnOnce() -> Case<Self>,
+        nonpos: impl FnOnce() -> Case<Self>,
+        nan: impl FnOnce() -> Case<Self>,
+    ) -> Case<Self> {
+        let zero = Self::splat(0.0);
+        let (p, q) = (tp.gt(zero), tp.le(zero));
+        let (a, b, c) = (pos(), nonpos(), nan());
+        let f = |x: Self, y: Self, z: Self| Self::select(p, x, Self::select(q, y, z));
+        let m = |x, y, z| Self::select_mask(p, x, Self::select_mask(q, y, z));
+        Case {
+            near_t1: f(a.near_t1, b.near_t1, c.near_t1),
+            far_t0: f(a.far_t0, b.far_t0, c.far_t0),
+            far_t1: f(a.far_t1, b.far_t1, c.far_t1),
+            skip_near: m(a.skip_near, b.skip_near, c.skip_near),
+            far: m(a.far, b.far, c.far),
+        }
+    }
+}
+
+impl Lanes for f32 {
+    type Mask = bool;
+    #[inline(always)]
+    fn splat(x: f32) -> f32 {
+        x
+    }
+    #[inline(always)]
+    fn min(self, o: f32) -> f32 {
+        min_ps(self, o)
+    }
+    #[inline(always)]
+    fn max(self, o: f32) -> f32 {
+        max_ps(self, o)
+    }
+    #[inline(always)]
+    fn lt(self, o: f32) -> bool {
+        self < o
+    }
+    #[inline(always)]
+    fn le(self, o: f32) -> bool {
+        self <= o
+    }
+    #[inline(always)]
+    fn gt(self, o: f32) -> bool {
+        self > o
+    }
+    #[inline(always)]
+    fn eq(self, o: f32) -> bool {
+        self == o
+    }
+    #[inline(always)]
+    fn and_not(m: bool, n: bool) -> bool {
+        m & !n
+    }
+    #[inline(always)]
+    fn select(m: bool, a: f32, b: f32) -> f32 {
+        if m { a } else { b }
+    }
+    #[inline(always)]
+    fn select_mask(m: bool, a: bool, b: bool) -> bool {
+        if m { a } else { b }
+    }
+    #[inline(always)]
+    fn none() -> bool {
+        false
+    }
+    #[inline(always)]
+    fn all() -> bool {
+        true
+    }
+    #[inline(always)]
+    fn by_sign(
+        tp: f32,
+        pos: impl FnOnce() -> Case<f32>,
+        nonpos: impl FnOnce() -> Case<f32>,
+        nan: impl FnOnce() -> Case<f32>,
+    ) -> Case<f32> {
+        if tp > 0.0 {
+            pos()
+        } else if tp <= 0.0 {
+            nonpos()
+        } else {
+            nan()
+        }
+    }
+}
+
+impl Lanes for F32x4 {
+    type Mask = M32x4;
+    #[inline(always)]
+    fn splat(x: f32) -> F32x4 {
+        F32x4::splat(x)
+    }
+    #[inline(always)]
+    fn min(self, o: F32x4) -> F32x4 {
+        F32x4::min(self, o)
+    }
+    #[inline(always)]
+    fn max(self, o: F32x4) -> F32x4 {
+        F32x4::max(self, o)
+    }
+    #[inline(always)]
+    fn lt(self, o: F32x4) -> M32x4 {
+        F32x4::lt(self, o)
+    }
+    #[inline(always)]
+    fn le(self, o: F32x4) -> M32x4 {
+        F32x4::le(self, o)
+    }
+    #[inline(always)]
+    fn gt(self, o: F32x4) -> M32x4 {
+        F32x4::gt(self, o)
+    }
+    #[inline(always)]
+    fn eq(self, o: F32x4) -> M32x4 {
+        F32x4::eq(self, o)
+    }
+    #[inline(always)]
+    fn and_not(m: M32x4, n: M32x4) -> M32x4 {
+        m.and_not(n)
+    }
+    #[inline(always)]
+    fn select(m: M32x4, a: F32x4, b: F32x4) -> F32x4 {
+        m.select(a, b)
+    }
+    #[inline(always)]
+    fn select_mask(m: M32x4, a: M32x4, b: M32x4) -> M32x4 {
+        m.select_mask(a, b)
+    }
+    #[inline(always)]
+    fn none() -> M32x4 {
+        M32x4::none()
+    }
+    #[inline(always)]
+    fn all() -> M32x4 {
+        M32x4::all()
+    }
+}
+
+/// One case of the step, before the normalisation of [`Step`]: the near and far intervals and
+/// which children are entered.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Case<L: Lanes> {
+    /// End of the near child's interval (it starts at the node's `t0`).
+    pub(super) near_t1: L,
+    /// Start of the far child's interval.
+    pub(super) far_t0: L,
+    /// End of the far child's interval.
+    pub(super) far_t1: L,
+    /// The near child is not entered (the ray goes far).
+    pub(super) skip_near: L::Mask,
+    /// The far child is entered (if the near one is not, the ray goes far anyway).
+    pub(super) far: L::Mask,
+}
+
+/// One inner-node step, oriented near/far (near = the child on the origin's side of the split).
+/// The near child's interval is `[t0, near_t1]`, the far child's `[far_t0, far_t1]`; when only
+/// one child is entered its interval is the one to continue with (`near_t1 == t1` then, and
+/// `far_t1 == t1`), so a caller never needs the case that produced it.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Step<L: Lanes> {
+    /// The left child (below the split) is the near one.
+    pub(super) near_left: L::Mask,
+    /// The near child is not entered (the others enter it).
+    pub(super) skip_near: L::Mask,
+    /// The far child is entered (always when the near one is not).
+    pub(super) go_far: L::Mask,
+    /// End of the near child's interval.
+    pub(super) near_t1: L,
+    /// Start of the far child's interval.
+    pub(super) far_t0: L,
+    /// End of the far child's interval.
+    pub(super) far_t1: L,
+}
+
+/// The near/far child intervals of the ray interval `[t0, t1]` at a split plane `split`, for a
+/// ray with `origin`, reciprocal direction `inv` and slack `slack` (all on the node's axis).
+///
+/// The plane is crossed at `tp = (split - origin) · inv`. A side is entered when the ray comes
+/// within `δ` of it (`slack = δ · |inv|`, in `t` units) and its interval is not empty up to the
+/// relative `SLACK`:
+/// - `tp > 0`: near is `[t0, min(t1, tp + δ)]`, entered if `t0 <= (tp + δ)·HI`; far is
+///   `[max(t0, tp - δ), t1]`, entered if its start is `<= t1·HI`.
+/// - `tp <= 0` (the plane is behind the origin): near is `[t0, t1]`, always entered; far is
+///   `[t0, min(t1, tp + δ)]`, entered if `t0 <=` its end `·HI`.
+/// - `tp` NaN (`0 · ∞`: a ray parallel to the plane, lying in it): both, with `[t0, t1]`.
+///
+/// When only one side is entered, its interval is `[t0, t1]` (near) or `[far_t0, t1]` (far).
+/// The near side is the origin's (the left one on the plane when the direction is negative).
+/// Interval ends are never NaN where they are used (`t0`, `t1` come from non-NaN root clips,
+/// `δ` is clamped finite, and `tp ± δ` is NaN only where `tp` is, which takes the third case),
+/// so `minps`/`maxps` give the values `f32::min`/`max` would (up to the sign of a zero, which
+/// no comparison sees).
+#[inline(always)]
+pub(super) fn step<L: Lanes>(split: L, origin: L, inv: L, slack: L, t0: L, t1: L) -> Step<L> {
+    let (near_left, c) = split_case(split, origin, inv, slack, t0, t1);
+    let both = L::and_not(c.far, c.skip_near);
+    Step {
+        near_left,
+        skip_near: c.skip_near,
+        go_far: c.far | c.skip_near,
+        near_t1: L::select(both, c.near_t1, t1),
+        far_t0: c.far_t0,
+        far_t1: L::select(both, c.far_t1, t1),
+    }
+}
+
+/// [`step`] before its normalisation: whether the left child is the near one, and the case's
+/// intervals and entry tests. When only one side is entered, a caller continues with `[t0, t1]`
+/// (near) or `[far_t0, t1]` (far), as [`step`] does; the single-ray loop takes this form and
+/// branches on "both" (its branches are the normalisation). "Near not entered" is written
+/// `(tp + δ)·HI < t0`, the negation of `t0 <= (tp + δ)·HI` as neither is NaN when `tp > 0`.
+#[inline(always)]
+pub(super) fn split_case<L: Lanes>(
+    split: L,
+    origin: L,
+    inv: L,
+    slack: L,
+    t0: L,
+    t1: L,
+) -> (L::Mask, Case<L>) {
+    let zero = L::splat(0.0);
+    let hi = L::splat(HI);
+    let tp = (split - origin) * inv;
+    let tps = tp + slack;
+    let near_left = origin.lt(split) | (origin.eq(split) & inv.lt(zero));
+    let case = L::by_sign(
+        tp,
+        || {
+            let far_t0 = t0.max(tp - slack);
+            Case {
+                near_t1: t1.min(tps),
+                far_t0,
+                far_t1: t1,
+                skip_near: (tps * hi).lt(t0),
+                far: far_t0.le(t1 * hi),
+            }
+        },
+        || {
+            let far_t1 = t1.min(tps);
+            Case {
+                near_t1: t1,
+                far_t0: t0,
+                far_t1,
+                skip_near: L::none(),
+                far: t0.le(far_t1 * hi),
+            }
+        },
+        || Case {
+            near_t1: t1,
+            far_t0: t0,
+            far_t1: t1,
+            skip_near: L::none(),
+            far: L::all(),
+        },
+    );
+    (near_left, case)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{F32x4, HI, step};
+
+    /// The step as first written for the single-ray loop (branches on the sign of `tp`,
+    /// `f32::min`/`max`): the specification the branch-free [`step`] must reproduce.
+    /// Returns `(near_left, go_near, go_far, near_t1, far_t0, far_t1)` in the same convention.
+    fn reference(split: f32, oa: f32, ia: f32, st: f32, t0: f32, t1: f32) -> [f32; 6] {
+        let tp = (split - oa) * ia;
+        let nl = oa < split || (oa == split && ia < 0.0);
+        let (near_t1, far_t0, far_t1, near_used, far_used) = if tp > 0.0 {
+            let far_t0 = t0.max(tp - st);
+            (
+                t1.min(tp + st),
+                far_t0,
+                t1,
+                t0 <= (tp + st) * HI,
+                far_t0 <= t1 * HI,
+            )
+        } else if tp <= 0.0 {
+            let far_t1 = t1.min(tp + st);
+            (t1, t0, far_t1, true, t0 <= far_t1 * HI)
+        } else {
+            (t1, t0, t1, true, true)
+        };
+        let both = near_used && far_used;
+        let (n1, f0, f1) = if both {
+            (near_t1, far_t0, far_t1)
+        } else {
+            (t1, far_t0, t1)
+        };
+        let b = |x: bool| x as u8 as f32;
+        [b(nl), b(near_used), b(both || !near_used), n1, f0, f1]
+    }
+
+    fn scalar(split: f32, oa: f32, ia: f32, st: f32, t0: f32, t1: f32) -> [f32; 6] {
+        let s = step::<f32>(split, oa, ia, st, t0, t1);
+        let b = |x: bool| x as u8 as f32;
+        [
+            b(s.near_left),
+            b(!s.skip_near),
+            b(s.go_far),
+            s.near_t1,
+            s.far_t0,
+            s.far_t1,
+        ]
+    }
+
+    /// Small deterministic generator.
+    struct Lcg(u64);
+    impl Lcg {
+        fn next(&mut self) -> u32 {
+            self.0 = self
+                .0
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (self.0 >> 33) as u32
+        }
+        fn coord(&mut self) -> f32 {
+            (self.next() as f32 / (1u64 << 31) as f32) * 2.0 - 1.0
+        }
+    }
+
+    #[test]
+    fn scalar_and_four_lane_steps_match_the_reference_formula() {
+        let mut rng = Lcg(0xabc);
+        let special = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MAX,
+            1e-30,
+        ];
+        let pick = |rng: &mut Lcg| {
+            if rng.next().is_multiple_of(4) {
+                special[(rng.next() % special.len() as u32) as usize]
+            } else {
+                rng.coord() * 3.0
+            }
+        };
+        for _ in 0..200_000 {
+            let split = pick(&mut rng);
+            let lane = |rng: &mut Lcg| {
+                let o = if rng.next().is_multiple_of(4) {
+                    split
+                } else {
+                    pick(rng)
+                };
+                let t0 = pick(rng).abs();
+                let t1 = if rng.next().is_multiple_of(8) {
+                    t0 * 0.5
+                } else {
+                    t0 + pick(rng).abs()
+                };
+                [o, pick(rng), pick(rng).abs().min(f32::MAX), t0, t1]
+            };
+            let l: [[f32; 5]; 4] = std::array::from_fn(|_| lane(&mut rng));
+            let col = |j: usize| F32x4::from_array(&l.map(|x| x[j]));
+            let v = step::<F32x4>(F32x4::splat(split), col(0), col(1), col(2), col(3), col(4));
+            let (nt1, ft0, ft1) = (
+                v.near_t1.to_array(),
+                v.far_t0.to_array(),
+                v.far_t1.to_array(),
+            );
+            for (k, &[o, i, st, t0, t1]) in l.iter().enumerate() {
+                let want = reference(split, o, i, st, t0, t1);
+                let got = scalar(split, o, i, st, t0, t1);
+                // Decisions equal; interval ends equal as numbers (a zero's sign may differ
+                // from the reference's; it never changes a comparison).
+                assert_eq!(got, want, "{split} {:?}", l[k]);
+                let bit = |m: u8| (m >> k & 1) as f32;
+                let lane = [
+                    bit(v.near_left.bits()),
+                    bit(!v.skip_near.bits()),
+                    bit(v.go_far.bits()),
+                    nt1[k],
+                    ft0[k],
+                    ft1[k],
+                ];
+                // The packet lane is the single ray's step, bit for bit.
+                assert_eq!(
+                    lane.map(f32::to_bits),
+                    got.map(f32::to_bits),
+                    "{split} {:?}",
+                    l[k]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_ray_in_the_split_plane_enters_both_children() {
+        let s = step::<f32>(0.0, 0.0, f32::INFINITY, 0.0, 0.0, 5.0);
+        assert!(!s.skip_near && s.go_far);
+        assert_eq!((s.near_t1, s.far_t0, s.far_t1), (5.0, 0.0, 5.0));
+        // A plane behind the origin: only the near side.
+        let s = step::<f32>(-1.0, 0.0, 1.0, 0.0, 0.0, 5.0);
+        assert!(!s.skip_near && !s.go_far && !s.near_left);
+    }
+}
