@@ -23,12 +23,18 @@
 //! one schedule ([`schedule`]) orders them. Each scene gets only the stages it needs
 //! ([`schedule::Pipeline`]). Images are bit-identical for any thread count: every queue stays in
 //! sample order and every sample is accumulated in schedule order.
+//!
+//! Memory is bounded by the wave: shadow rays are spawned and traced in passes of a fixed number
+//! of rows however many lights there are ([`stages::shade::ShadowPass`]), and each wave's resolved
+//! pixels go to a [`film::PixelSink`] — an in-memory [`Film`], or an image file encoded row by
+//! row on a writer thread ([`output::ImageStream`]).
 
 pub mod accel;
 pub mod error;
 pub mod film;
 pub mod geometry;
 pub mod mesh;
+pub mod output;
 pub mod queue;
 pub mod sampling;
 pub mod scene;
@@ -42,7 +48,7 @@ pub mod stages;
 
 pub use film::Film;
 pub use scene::Scene;
-pub use schedule::{Pipeline, RenderOptions, Stage, render, render_observed};
+pub use schedule::{Pipeline, RenderOptions, Stage, render, render_into, render_observed};
 pub use stats::Stats;
 pub use world::World;
 

@@ -80,6 +80,7 @@ fn a_pixel_range_renders_exactly_the_full_images_pixels_there() {
     let options = RenderOptions {
         wave_samples: 1000,
         pixel_range: Some(range.clone()),
+        ..RenderOptions::default()
     };
     let part = render_png_bytes_with(&scene, options);
     let bytes = range.start as usize * 3..range.end as usize * 3;

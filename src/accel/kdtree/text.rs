@@ -23,7 +23,7 @@ use super::{KdNode, KdTree, MAX_DEPTH, node::MAX_PACKED, split_box};
 #[derive(Debug, Error)]
 pub enum TreeError {
     /// The file could not be opened or read.
-    #[error("cannot read tree file {path}: {source}")]
+    #[error("cannot read tree file {path}")]
     Io {
         /// File that failed.
         path: PathBuf,

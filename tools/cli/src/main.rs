@@ -10,8 +10,10 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::mesh::TriangleMesh;
+use wavefront::output::{ImageFormat, ImageMeta, ImageStream};
 use wavefront::scene::overrides::Overrides;
-use wavefront::{Pipeline, RenderOptions, Scene, World, load_scene, render};
+use wavefront::schedule::{MAX_WAVE_SAMPLES, Progress as ProgressObserver};
+use wavefront::{Pipeline, RenderOptions, Scene, Stats, World, load_scene, render_into};
 
 #[derive(Parser)]
 #[command(
@@ -124,7 +126,7 @@ struct RenderArgs {
     /// Print per-stage statistics (rays in, rays out, time, Mrays/s).
     #[arg(long)]
     stats: bool,
-    /// Upper bound on samples traced per wave (bounds memory).
+    /// Upper bound on samples traced per wave (bounds memory; 1 to 2^28).
     #[arg(long, default_value_t = wavefront::schedule::DEFAULT_WAVE_SAMPLES)]
     wave_samples: usize,
 }
@@ -219,6 +221,8 @@ fn run_plan(args: &SceneArgs) -> Result<()> {
 
 fn run_render(args: RenderArgs) -> Result<()> {
     let scene = scene_from(&args.scene)?;
+    // Refuse a bad output name before any work.
+    ImageFormat::from_path(&args.output)?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
         if n == 0 {
@@ -226,21 +230,37 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
         builder = builder.num_threads(n);
     }
+    if !(1..=MAX_WAVE_SAMPLES).contains(&args.wave_samples) {
+        bail!(
+            "invalid setting --wave-samples: {} is out of range 1..={MAX_WAVE_SAMPLES}",
+            args.wave_samples
+        );
+    }
     let pool = builder.build().context("cannot start the thread pool")?;
     let options = RenderOptions {
-        wave_samples: args.wave_samples.max(1),
+        wave_samples: args.wave_samples,
         ..RenderOptions::default()
     };
     let start = Instant::now();
-    let (film, stats, world_seconds) = pool.install(|| -> Result<_> {
+    let (stats, world_seconds) = pool.install(|| -> Result<_> {
         let (world, setup) = World::load_timed(&scene)
             .with_context(|| format!("cannot load scene {}", scene.name))?;
         let world_seconds = start.elapsed().as_secs_f64();
+        // Rows are encoded and written as their waves finish: memory follows the wave size,
+        // not the image size.
+        let image = &scene.image;
+        let mut out = ImageStream::create(
+            &args.output,
+            (image.width, image.height),
+            image.gamma,
+            &ImageMeta::default(),
+        )?;
         let bar = Progress::new();
-        let (film, stats) = render(&scene, &world, options, |done, total| {
-            bar.update(done, total)
-        });
+        let mut stats = Stats::default();
+        let progress = ProgressObserver(|done, total| bar.update(done, total));
+        render_into(&scene, &world, &options, (&mut stats, progress), &mut out);
         bar.finish();
+        out.finish()?;
         if args.stats
             && let Some(t) = world.triangles()
         {
@@ -252,9 +272,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
                 setup.tree_seconds * 1e3
             );
         }
-        Ok((film, stats, world_seconds))
+        Ok((stats, world_seconds))
     })?;
-    film.save(&args.output, scene.image.gamma)?;
     if args.stats {
         println!("{stats}");
         println!(

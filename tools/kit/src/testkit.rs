@@ -8,7 +8,13 @@ use wavefront::{Film, RenderOptions, Scene, World};
 
 /// Loads `scene`'s world and renders it with `options`.
 pub fn render_film_with(scene: &Scene, options: RenderOptions) -> Film {
-    let world = World::load(scene).unwrap_or_else(|e| panic!("cannot load {}: {e}", scene.name));
+    let world = World::load(scene).unwrap_or_else(|e| {
+        panic!(
+            "cannot load {}: {}",
+            scene.name,
+            wavefront::error::chain(&e)
+        )
+    });
     wavefront::render(scene, &world, options, |_, _| {}).0
 }
 
@@ -34,8 +40,13 @@ pub fn in_pool<R: Send>(threads: usize, f: impl FnOnce() -> R + Send) -> R {
 /// The oracle's render of `scene` (its mesh, if any, loaded by the project's OBJ reader).
 pub fn oracle_image(scene: &Scene) -> OracleImage {
     let mesh = scene.meshes.first().map(|m| {
-        wavefront::mesh::TriangleMesh::load_obj(&m.path)
-            .unwrap_or_else(|e| panic!("cannot load {}: {e}", m.path.display()))
+        wavefront::mesh::TriangleMesh::load_obj(&m.path).unwrap_or_else(|e| {
+            panic!(
+                "cannot load {}: {}",
+                m.path.display(),
+                wavefront::error::chain(&e)
+            )
+        })
     });
     render_oracle(scene, mesh.as_ref())
 }
@@ -98,8 +109,13 @@ pub fn sibenik_scene(shadows: bool) -> Option<Scene> {
 pub fn sibenik_triangles() -> Option<wavefront::mesh::TriangleMesh> {
     let path = sibenik_mesh()?;
     Some(
-        wavefront::mesh::TriangleMesh::load_obj(&path)
-            .unwrap_or_else(|e| panic!("cannot load {}: {e}", path.display())),
+        wavefront::mesh::TriangleMesh::load_obj(&path).unwrap_or_else(|e| {
+            panic!(
+                "cannot load {}: {}",
+                path.display(),
+                wavefront::error::chain(&e)
+            )
+        }),
     )
 }
 
