@@ -95,9 +95,10 @@ fn stages(c: &mut Criterion) {
 fn frame(c: &mut Criterion, label: &str, scene: &Scene, world: &World) {
     let mut group = c.benchmark_group("frame");
     let i = &scene.image;
-    group.throughput(Throughput::Elements(u64::from(
-        i.width * i.height * i.samples,
-    )));
+    group.throughput(Throughput::Elements(
+        i.sample_count()
+            .expect("a validated scene's samples fit a u64"),
+    ));
     // Frames take tens of ms to seconds: one iteration per sample.
     group.sampling_mode(SamplingMode::Flat);
     if i.samples > 1 {

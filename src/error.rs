@@ -1,6 +1,14 @@
 //! Error types, one per domain: scene files, geometry loading (meshes and trees), output images.
 //!
 //! Messages are lowercase and name the file and line where there is one.
+//!
+//! **One rule for every error type of the workspace: a message says what failed at its own layer
+//! and never repeats its cause.** A wrapped error (an I/O error, an encoder's error) is exposed
+//! through [`std::error::Error::source`] only, and whoever prints the error walks the chain once:
+//! the CLI prints anyhow's `{:#}`, library code and tests print [`chain`]. Embedding `{source}` in
+//! the message as well would print the cause twice (`cannot read scene file /tmp: Is a directory
+//! (os error 21): Is a directory (os error 21)`). A wrapper that adds nothing is
+//! `#[error(transparent)]`.
 
 use std::path::PathBuf;
 
@@ -11,7 +19,7 @@ pub use crate::mesh::MeshError;
 #[derive(Debug, thiserror::Error)]
 pub enum SceneError {
     /// The scene file could not be read.
-    #[error("cannot read scene file {}: {source}", file.display())]
+    #[error("cannot read scene file {}", file.display())]
     Io {
         /// The scene file.
         file: PathBuf,
@@ -91,19 +99,65 @@ pub enum OutputError {
         file: PathBuf,
     },
     /// Writing failed.
-    #[error("cannot write {}: {source}", file.display())]
+    #[error("cannot write {}", file.display())]
     Io {
         /// The output path.
         file: PathBuf,
         /// The underlying error.
         source: std::io::Error,
     },
-    /// The PNG encoder failed.
-    #[error("cannot encode {}: {source}", file.display())]
+    /// The PNG encoder failed (e.g. a text chunk whose keyword is not 1–79 Latin-1 characters).
+    #[error("cannot encode {}", file.display())]
     Encode {
         /// The output path.
         file: PathBuf,
         /// The encoder's error.
-        source: image::ImageError,
+        source: png::EncodingError,
     },
+}
+
+/// An error and its causes on one line, outermost first, joined by `: ` — what the CLI prints,
+/// for library code and tests that print errors without anyhow.
+pub fn chain(error: &dyn std::error::Error) -> String {
+    let mut s = error.to_string();
+    let mut cause = error.source();
+    while let Some(e) = cause {
+        s.push_str(": ");
+        s.push_str(&e.to_string());
+        cause = e.source();
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_wrapped_cause_is_said_once() {
+        let io = || std::io::Error::other("disk on fire");
+        let errors: Vec<Box<dyn std::error::Error>> = vec![
+            Box::new(SceneError::Io {
+                file: "s.toml".into(),
+                source: io(),
+            }),
+            Box::new(LoadError::Mesh(MeshError::Read {
+                path: "m.obj".into(),
+                source: io(),
+            })),
+            Box::new(LoadError::Tree(TreeError::Io {
+                path: "t.kd".into(),
+                source: io(),
+            })),
+            Box::new(OutputError::Io {
+                file: "o.png".into(),
+                source: io(),
+            }),
+        ];
+        for e in errors {
+            let line = chain(e.as_ref());
+            assert_eq!(line.matches("disk on fire").count(), 1, "{line}");
+            assert!(!e.to_string().contains("disk on fire"), "{e}");
+        }
+    }
 }

@@ -1,5 +1,6 @@
-//! The film: per-sample radiance of the current wave ([`SampleBuffer`]), the finished image in
-//! linear radiance ([`Film`]), and output as 8-bit PNG or PPM.
+//! The film: per-sample radiance of the current wave ([`SampleBuffer`]), its box filter into
+//! pixels ([`resolve_wave`]), where resolved pixels go ([`PixelSink`]: an in-memory [`Film`], or
+//! an image file streamed as the render goes, [`crate::output::ImageStream`]), and 8-bit output.
 //!
 //! Accumulation is deterministic: every addition into a sample happens in schedule order (depth by
 //! depth, shade before shadow), and within one pass each sample is written by exactly one task.
@@ -10,8 +11,25 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::error::OutputError;
-use crate::queue::{MIN_CHUNK, SampleSlot};
+use crate::output::{ImageMeta, write_rgb8};
+use crate::queue::{MIN_CHUNK, PixelIndex, SampleSlot};
 use crate::wave::Wave;
+
+pub use crate::output::write_atomically;
+
+/// Where the schedule puts each wave's resolved pixels (linear radiance), as soon as the wave is
+/// done. Waves arrive in ascending pixel order and never overlap; pixels never delivered (outside
+/// a rendered pixel range) are black.
+pub trait PixelSink {
+    /// Takes the pixels `first .. first + pixels.len()` (row-major, row 0 at the top).
+    fn put(&mut self, first: PixelIndex, pixels: &[Vec3]);
+
+    /// False once the sink can take no more pixels (e.g. its file could not be written): the
+    /// schedule then stops after the current wave, and the sink's owner reports why.
+    fn accepts(&self) -> bool {
+        true
+    }
+}
 
 /// Linear radiance of every sample of one wave, indexed by [`SampleSlot`].
 #[derive(Clone, Debug, Default)]
@@ -105,19 +123,6 @@ impl Film {
         }
     }
 
-    /// Averages each pixel's samples in `buffer` (slots as `wave` maps them) into the wave's
-    /// pixels: the box filter, in a fixed order. The film is the wave's region.
-    pub fn resolve_wave(&mut self, buffer: &SampleBuffer, wave: &Wave) {
-        let samples = wave.samples as usize;
-        let (first, n) = (wave.first as usize, wave.pixels as usize);
-        let inv = 1.0 / samples as f32;
-        self.pixels[first..first + n]
-            .par_iter_mut()
-            .with_min_len(MIN_CHUNK)
-            .zip(buffer.radiance.par_chunks_exact(samples))
-            .for_each(|(px, s)| *px = s.iter().fold(Vec3::ZERO, |a, &b| a + b) * inv);
-    }
-
     /// 8-bit RGB: `round(255 · clamp(L, 0, 1)^(1/gamma))` per channel (SPEC §2).
     pub fn to_rgb8(&self, gamma: f32) -> Vec<u8> {
         let inv = 1.0 / gamma;
@@ -129,10 +134,36 @@ impl Film {
     }
 
     /// Writes the image as `.png` or `.ppm` (by extension). The file appears complete or not at
-    /// all: it is written to a temporary name beside it and renamed.
+    /// all: it is written to a temporary name beside it and renamed. The same encoder as a
+    /// streamed render ([`crate::output::ImageStream`]): the same pixels give the same bytes.
     pub fn save(&self, path: &Path, gamma: f32) -> Result<(), OutputError> {
-        save_rgb8(path, self.width, self.height, &self.to_rgb8(gamma))
+        self.save_with(path, gamma, &ImageMeta::default())
     }
+
+    /// [`Film::save`] with metadata (PNG text chunks).
+    pub fn save_with(&self, path: &Path, gamma: f32, meta: &ImageMeta) -> Result<(), OutputError> {
+        write_rgb8(path, (self.width, self.height), meta, &self.to_rgb8(gamma))
+    }
+}
+
+/// A film takes every wave's pixels into the whole image.
+impl PixelSink for Film {
+    fn put(&mut self, first: PixelIndex, pixels: &[Vec3]) {
+        let first = first.0 as usize;
+        self.pixels[first..first + pixels.len()].copy_from_slice(pixels);
+    }
+}
+
+/// Averages each pixel's samples in `buffer` (slots as `wave` maps them) into `out`, one entry per
+/// pixel of the wave (overwritten): the box filter, in a fixed order.
+pub fn resolve_wave(buffer: &SampleBuffer, wave: &Wave, out: &mut Vec<Vec3>) {
+    let samples = wave.samples.max(1) as usize;
+    let inv = 1.0 / samples as f32;
+    buffer.radiance[..wave.len()]
+        .par_chunks_exact(samples)
+        .with_min_len(MIN_CHUNK)
+        .map(|s| s.iter().fold(Vec3::ZERO, |a, &b| a + b) * inv)
+        .collect_into_vec(out);
 }
 
 /// Encodes one linear channel value to 8 bits; NaN becomes 0.
@@ -145,52 +176,7 @@ pub fn encode(c: f32, inv_gamma: f32) -> u8 {
 /// Writes 8-bit RGB pixels to `path` as PNG or binary PPM (P6), atomically: the bytes go to a
 /// temporary file beside it, which is renamed over `path` only when complete.
 pub fn save_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), OutputError> {
-    use image::ImageEncoder;
-    use image::codecs::png::PngEncoder;
-    use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
-
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    let mut bytes = Vec::new();
-    let encoded = match ext.as_deref() {
-        Some("png") => PngEncoder::new(&mut bytes).write_image(
-            rgb,
-            width,
-            height,
-            image::ExtendedColorType::Rgb8,
-        ),
-        Some("ppm") => PnmEncoder::new(&mut bytes)
-            .with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary))
-            .write_image(rgb, width, height, image::ExtendedColorType::Rgb8),
-        _ => {
-            return Err(OutputError::Format {
-                file: path.to_path_buf(),
-            });
-        }
-    };
-    encoded.map_err(|source| OutputError::Encode {
-        file: path.to_path_buf(),
-        source,
-    })?;
-    write_atomically(path, &bytes).map_err(|source| OutputError::Io {
-        file: path.to_path_buf(),
-        source,
-    })
-}
-
-/// Writes `bytes` to `path` so that the file appears complete or not at all: they go to
-/// `path.partial`, which is renamed over `path` when complete and removed on failure.
-pub fn write_atomically(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
-    let mut name = path.file_name().unwrap_or_default().to_os_string();
-    name.push(".partial");
-    let tmp = path.with_file_name(name);
-    let written = std::fs::write(&tmp, bytes).and_then(|()| std::fs::rename(&tmp, path));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
+    write_rgb8(path, (width, height), &ImageMeta::default(), rgb)
 }
 
 #[cfg(test)]
@@ -253,7 +239,9 @@ mod tests {
         b.radiance = vec![Vec3::ONE, Vec3::ZERO, Vec3::splat(0.5), Vec3::splat(0.5)];
         let mut f = Film::new(2, 2);
         let wave = Wave::of_image(2, 2, 2, 2, 2);
-        f.resolve_wave(&b, &wave);
+        let mut pixels = vec![];
+        resolve_wave(&b, &wave, &mut pixels);
+        f.put(crate::queue::PixelIndex(wave.first), &pixels);
         assert_eq!(
             f.pixels,
             vec![Vec3::ZERO, Vec3::ZERO, Vec3::splat(0.5), Vec3::splat(0.5)]

@@ -24,6 +24,11 @@
 //! ([`schedule::Pipeline`]). Images are bit-identical for any thread count: every queue stays in
 //! sample order and every sample is accumulated in schedule order.
 //!
+//! Memory is bounded by the wave: shadow rays are spawned and traced in passes of a fixed number
+//! of rows however many lights there are ([`stages::shade::ShadowPass`]), and each wave's resolved
+//! pixels go to a [`film::PixelSink`] — an in-memory [`Film`], or an image file encoded row by
+//! row on a writer thread ([`output::ImageStream`]).
+//!
 //! `unsafe` code is denied crate-wide; the SSE2 lanes of the kD-tree packet traversal
 //! (`accel::kdtree::simd`) and the Embree FFI peer (`peer::embree`, behind a feature) opt out.
 #![deny(unsafe_code)]
@@ -34,6 +39,7 @@ pub mod film;
 pub mod frame;
 pub mod geometry;
 pub mod mesh;
+pub mod output;
 pub mod queue;
 pub mod region;
 pub mod sampling;
@@ -49,7 +55,7 @@ pub mod stages;
 
 pub use film::Film;
 pub use scene::Scene;
-pub use schedule::{Pipeline, RenderOptions, Stage, render, render_observed};
+pub use schedule::{Pipeline, RenderOptions, Stage, render, render_into, render_observed};
 pub use stats::Stats;
 pub use world::World;
 

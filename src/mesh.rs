@@ -15,7 +15,7 @@ use thiserror::Error;
 #[derive(Debug, Error)]
 pub enum MeshError {
     /// The file could not be opened or read.
-    #[error("cannot read mesh file {path}: {source}")]
+    #[error("cannot read mesh file {path}")]
     Read {
         /// File that failed.
         path: PathBuf,

@@ -46,8 +46,8 @@ impl Stats {
         time: Duration,
     ) {
         let e = self.entries.entry((depth, stage)).or_default();
-        e.rays_in += rays_in as u64;
-        e.rays_out += rays_out as u64;
+        e.rays_in = e.rays_in.saturating_add(rays_in as u64);
+        e.rays_out = e.rays_out.saturating_add(rays_out as u64);
         e.seconds += time.as_secs_f64();
     }
 

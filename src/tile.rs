@@ -14,7 +14,7 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use crate::error::OutputError;
-use crate::film::write_atomically;
+use crate::output::ImageMeta;
 use crate::region::Region;
 use crate::scene::{Scene, TreeSource};
 
@@ -208,41 +208,27 @@ pub enum TileError {
     NoTiles,
 }
 
-/// Encodes 8-bit RGB as a PNG with `tEXt` chunks and writes it atomically (temporary name, then
-/// rename). The one place that writes text chunks.
-pub fn write_png_with_text(
-    path: &Path,
-    width: u32,
-    height: u32,
-    rgb: &[u8],
-    text: &[(&str, String)],
-) -> Result<(), OutputError> {
-    let encode_error = |e: png::EncodingError| OutputError::Io {
-        file: path.to_path_buf(),
-        source: std::io::Error::other(e),
-    };
-    let mut bytes = Vec::new();
-    let mut encoder = png::Encoder::new(&mut bytes, width, height);
-    encoder.set_color(png::ColorType::Rgb);
-    encoder.set_depth(png::BitDepth::Eight);
-    for (key, value) in text {
-        encoder
-            .add_text_chunk((*key).to_owned(), value.clone())
-            .map_err(encode_error)?;
-    }
-    let mut writer = encoder.write_header().map_err(encode_error)?;
-    writer.write_image_data(rgb).map_err(encode_error)?;
-    writer.finish().map_err(encode_error)?;
-    write_atomically(path, &bytes).map_err(|source| OutputError::Io {
-        file: path.to_path_buf(),
-        source,
-    })
-}
-
 /// Writes a tile: `rgb` (the region's pixels) with `info`'s text chunks.
 pub fn write_tile(path: &Path, info: &TileInfo, rgb: &[u8]) -> Result<(), OutputError> {
     let (w, h) = (info.bounds.width(), info.bounds.height());
-    write_png_with_text(path, w, h, rgb, &info.text_chunks())
+    write_png_with_text(path, (w, h), rgb, &info.text_chunks())
+}
+
+/// 8-bit RGB as a PNG file with `tEXt` chunks, through the one image writer
+/// ([`crate::output::write_rgb8`]: atomic, the same encoder as every render).
+fn write_png_with_text(
+    path: &Path,
+    size: (u32, u32),
+    rgb: &[u8],
+    text: &[(&str, String)],
+) -> Result<(), OutputError> {
+    let meta = ImageMeta {
+        text: text
+            .iter()
+            .map(|(k, v)| ((*k).to_owned(), v.clone()))
+            .collect(),
+    };
+    crate::output::write_rgb8(path, size, &meta, rgb)
 }
 
 /// Reads a tile file and checks it against itself: its chunks parse, its bounds lie inside its
@@ -537,7 +523,7 @@ mod tests {
         // Bounds that disagree with the pixels.
         let mut info = t.info.clone();
         info.bounds = "0,3,0,2".parse().unwrap();
-        write_png_with_text(&path, 3, 3, &[0; 27], &info.text_chunks()).unwrap();
+        write_png_with_text(&path, (3, 3), &[0; 27], &info.text_chunks()).unwrap();
         let e = read_tile(&path).unwrap_err().to_string();
         assert!(e.contains("3x3") && e.contains("3x2"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);

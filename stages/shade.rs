@@ -1,12 +1,19 @@
 //! Stage `shade`: local Whitted shading at every hit (SPEC §2) and the shadow rays it needs.
 //!
-//! Reads: [`ShadeHits`]' read columns (`HitQueue.{origin, direction, t, prim, weight, slot}`),
-//! materials, lights.
+//! Reads: [`ShadeHits`]' read columns (`HitQueue.{origin, direction, t, prim, weight}`),
+//! materials, lights; then [`ShadedHits`] (`HitQueue.{direction, weight, slot, point, normal,
+//! material, spawn}`).
 //! Writes: [`ShadeHits`]' write columns — `HitQueue.{point, normal, material, spawn}` and
 //! `HitQueue.emitted` (the radiance added to the sample now, `(1 − α)·weight·(La [+ Ld + Ls when
-//! shadows are off])`) — and [`ShadowRays`]: one `ShadowQueue` row per hit and light that can
-//! light it, carrying `(1 − α)·weight·(Ld + Ls)`. [`add_emitted`] then adds `emitted` to the
-//! samples.
+//! shadows are off])`), which [`add_emitted`] adds to the samples — and [`ShadowRays`]: one
+//! `ShadowQueue` row per hit and light that can light it, carrying `(1 − α)·weight·(Ld + Ls)`.
+//!
+//! Shadow rays are spawned one [`ShadowPass`] at a time — a block of hits × a block of lights of
+//! at most a fixed number of rows — and the schedule traces each pass before spawning the next, so
+//! memory is bounded however many lights there are. Each sample still receives its emitted
+//! radiance first and then its lights in index order, so the image does not depend on the passes.
+
+use std::ops::Range;
 
 use glam::Vec3;
 use rayon::prelude::*;
@@ -14,7 +21,7 @@ use rayon::prelude::*;
 use crate::film::SampleBuffer;
 use crate::frame::Light;
 use crate::geometry::offset::shadow_t_max;
-use crate::queue::compact::{gather, kept_rows};
+use crate::queue::compact::kept_rows;
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, RowIndex, SampleSlot, ShadowQueue};
 use crate::scene::{Material, Scene};
 use crate::world::{Surface, World};
@@ -27,7 +34,6 @@ crate::column_set! {
         read t: f32,
         read prim: PrimId,
         read weight: Vec3,
-        read slot: SampleSlot,
         write point: Vec3,
         write normal: Vec3,
         write material: u32,
@@ -37,7 +43,20 @@ crate::column_set! {
 }
 
 crate::column_set! {
-    /// What `shade_hits` writes: the shadow rays, compacted in slot order.
+    /// What `spawn_shadow_rays` reads: the hits `shade_hits` has given their surfaces.
+    pub struct ShadedHits<'a>: read HitQueue {
+        direction: Vec3,
+        weight: Vec3,
+        slot: SampleSlot,
+        point: Vec3,
+        normal: Vec3,
+        material: u32,
+        spawn: Vec3,
+    }
+}
+
+crate::column_set! {
+    /// What `spawn_shadow_rays` writes: one pass's shadow rays, compacted in slot order.
     pub struct ShadowRays<'a>: ShadowQueue {
         write origin: Vec3,
         write direction: Vec3,
@@ -84,6 +103,58 @@ impl ShadeSettings {
     }
 }
 
+/// Upper bound on a pass's rows: row indices of a pass are `u32` ([`RowIndex`]).
+pub const MAX_SHADOW_ROWS: usize = u32::MAX as usize;
+
+/// One shade → shadow pass of a depth: the shadow rays of hits `hits` (rows of the hit queue)
+/// toward lights `lights` (indices into the world's lights), at most `hits.len() × lights.len()`
+/// rows. The first pass of a depth also shades the surfaces and adds the emitted radiance.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ShadowPass {
+    /// Rows of the hit queue.
+    pub hits: Range<usize>,
+    /// Indices of the lights.
+    pub lights: Range<usize>,
+}
+
+impl ShadowPass {
+    /// True for the depth's first pass: the one that shades surfaces and emits.
+    pub fn is_first(&self) -> bool {
+        self.hits.start == 0 && self.lights.start == 0
+    }
+
+    /// Candidate shadow rays of the pass (`hits × lights`; [`ShadowPass::plan`] keeps it within
+    /// its budget, so it never overflows).
+    pub fn rows(&self) -> usize {
+        self.hits.len() * self.lights.len()
+    }
+
+    /// The passes covering `hits` hits × `lights` lights with at most `budget` rows each (clamped
+    /// to `1..=MAX_SHADOW_ROWS`), in an order that keeps every sample's additions as an unsplit
+    /// pass makes them (each hit meets its lights in index order): all hits against blocks of
+    /// `budget / hits` lights; or, when the hits alone exceed the budget, blocks of `budget` hits
+    /// against one light at a time. Always at least one pass (the one that shades and emits); no
+    /// lights (shadows off) gives one pass without shadow rays.
+    pub fn plan(hits: usize, lights: usize, budget: usize) -> impl Iterator<Item = ShadowPass> {
+        let budget = budget.clamp(1, MAX_SHADOW_ROWS);
+        let (hit_block, light_block) = if hits == 0 || lights == 0 {
+            (hits.max(1), lights.max(1))
+        } else if hits <= budget {
+            (hits, (budget / hits).min(lights))
+        } else {
+            (budget, 1)
+        };
+        (0..hits.max(1)).step_by(hit_block).flat_map(move |h| {
+            (0..lights.max(1))
+                .step_by(light_block)
+                .map(move |l| ShadowPass {
+                    hits: h.min(hits)..(h + hit_block).min(hits),
+                    lights: l.min(lights)..(l + light_block).min(lights),
+                })
+        })
+    }
+}
+
 /// `(Ld + Ls)·I` from one light at `p` with facing normal `n` and unit view vector `v`, and
 /// `n·l`. Finite for every finite input: a zero half vector counts as `n·h = 0`, and a light at
 /// `p` itself gives nothing.
@@ -117,61 +188,76 @@ pub fn direct_light(
     (c * light.intensity, n_dot_l)
 }
 
-/// Shades one hit: returns the radiance emitted now and, through `shadow`, each light's deferred
-/// radiance and shadow ray (`None` where the light cannot contribute).
+/// The radiance one hit emits now: `(1 − α)·weight·(La [+ Σ (Ld + Ls) over every light when
+/// shadows are off])`. With shadows on, the lights' part comes through [`shadow_radiance`].
 #[inline]
 pub fn shade_hit(
     world: &World,
     settings: &ShadeSettings,
     (direction, weight): (Vec3, Vec3),
     surface: &Surface,
-    mut shadow: impl FnMut(usize, Option<(Vec3, Vec3, f32, Vec3)>),
 ) -> Vec3 {
-    let Surface {
-        point,
-        normal,
-        material,
-        spawn,
-    } = *surface;
-    let m = &world.materials()[material as usize];
+    let m = &world.materials()[surface.material as usize];
     let w = weight * (1.0 - m.alpha);
-    let v = -direction;
     let mut emitted = m.ka * settings.ambient;
-    let origin = settings.shadows.then_some(spawn);
-    for (j, light) in world.lights().iter().enumerate() {
-        let (c, n_dot_l) = direct_light(light, m, settings.specular, point, normal, v);
-        match origin {
-            None => emitted += c,
-            // A light behind the surface is blocked by the surface itself.
-            Some(o) if n_dot_l > 0.0 && c != Vec3::ZERO => {
-                let to = light.position - o;
-                let dist = to.length();
-                let dir = to / dist;
-                let t_max = shadow_t_max(light.position, dir, dist);
-                shadow(j, Some((o, dir, t_max, w * c)));
-            }
-            Some(_) => shadow(j, None),
+    if !settings.shadows {
+        let v = -direction;
+        for light in world.lights() {
+            emitted += direct_light(
+                light,
+                m,
+                settings.specular,
+                surface.point,
+                surface.normal,
+                v,
+            )
+            .0;
         }
     }
     w * emitted
 }
 
-/// Scratch for the shade kernel's variable output, reused across waves.
+/// The radiance `light` adds to a hit if its shadow ray is unoccluded, `(1 − α)·weight·(Ld + Ls)`;
+/// zero — no shadow ray — where the light is behind the surface (blocked by the surface itself)
+/// or adds nothing.
+#[inline]
+pub fn shadow_radiance(
+    light: &Light,
+    m: &Material,
+    specular: bool,
+    (direction, weight): (Vec3, Vec3),
+    (point, normal): (Vec3, Vec3),
+) -> Vec3 {
+    let (c, n_dot_l) = direct_light(light, m, specular, point, normal, -direction);
+    if n_dot_l > 0.0 && c != Vec3::ZERO {
+        weight * (1.0 - m.alpha) * c
+    } else {
+        Vec3::ZERO
+    }
+}
+
+/// The shadow ray from `origin` (the hit's offset spawn point) to `light`: unit direction and
+/// `t_max`, the distance shortened at the light by its error bound ([`shadow_t_max`]).
+#[inline]
+pub fn shadow_ray(origin: Vec3, light: &Light) -> (Vec3, f32) {
+    let to = light.position - origin;
+    let dist = to.length();
+    let dir = to / dist;
+    (dir, shadow_t_max(light.position, dir, dist))
+}
+
+/// Scratch for the shadow rays' variable output, reused across passes and waves; at most one
+/// pass's rows (a [`ShadowPass`]'s budget), whatever the number of lights.
 #[derive(Debug, Default)]
 pub struct ShadeScratch {
-    candidates: ShadowQueue,
+    /// `shadow_radiance` of every (hit, light) row of the pass, hit-major.
+    radiance: Vec<Vec3>,
+    /// The rows with non-zero radiance, in order.
     rows: Vec<RowIndex>,
 }
 
-/// Shades every hit: fills its surface columns and `emitted` (one row per hit), and `shadows`
-/// (compacted, slot order).
-pub fn shade_hits(
-    world: &World,
-    settings: &ShadeSettings,
-    hits: ShadeHits<'_>,
-    scratch: &mut ShadeScratch,
-    shadows: ShadowRays<'_>,
-) {
+/// Shades every hit: fills its surface columns and `emitted` (one row per hit).
+pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
     let n = hits.prim.len();
     hits.point.resize(n, Vec3::ZERO);
     hits.normal.resize(n, Vec3::ZERO);
@@ -192,65 +278,71 @@ pub fn shade_hits(
             let s = world.surface(prim, o, d, t);
             (*p, *nrm, *m, *sp) = (s.point, s.normal, s.material, s.spawn);
         });
-
-    let lights = world.lights().len();
-    let shadowed = settings.shadows && lights > 0;
-    let c = &mut scratch.candidates;
-    let rows = if shadowed { n * lights } else { 0 };
-    for col in [&mut c.origin, &mut c.direction, &mut c.radiance] {
-        col.resize(rows, Vec3::ZERO);
-    }
-    c.t_max.resize(rows, 0.0);
-    c.slot.clear();
-    c.slot.extend(
-        hits.slot
-            .iter()
-            .flat_map(|&s| std::iter::repeat_n(s, if shadowed { lights } else { 0 })),
-    );
-
-    let ray = (hits.direction, hits.weight);
     let surface = (&*hits.point, &*hits.normal, &*hits.material, &*hits.spawn);
-    let at = |(&point, &normal, &material, &spawn): (&Vec3, &Vec3, &u32, &Vec3)| Surface {
-        point,
-        normal,
-        material,
-        spawn,
-    };
-    if shadowed {
-        (
-            (ray, surface),
-            c.origin.par_chunks_mut(lights),
-            c.direction.par_chunks_mut(lights),
-            c.t_max.par_chunks_mut(lights),
-            c.radiance.par_chunks_mut(lights),
-        )
-            .into_par_iter()
-            .with_min_len(MIN_CHUNK / lights.max(1))
-            .map(|(((&d, &w), s), o, dir, tm, rad)| {
-                shade_hit(world, settings, (d, w), &at(s), |j, s| match s {
-                    Some((so, sd, st, sr)) => (o[j], dir[j], tm[j], rad[j]) = (so, sd, st, sr),
-                    None => rad[j] = Vec3::ZERO,
-                })
-            })
-            .collect_into_vec(hits.emitted);
-        kept_rows(rows, |i| c.radiance[i] != Vec3::ZERO, &mut scratch.rows);
-        gather(&c.origin, &scratch.rows, shadows.origin);
-        gather(&c.direction, &scratch.rows, shadows.direction);
-        gather(&c.t_max, &scratch.rows, shadows.t_max);
-        gather(&c.radiance, &scratch.rows, shadows.radiance);
-        gather(&c.slot, &scratch.rows, shadows.slot);
-    } else {
-        (ray, surface)
-            .into_par_iter()
-            .with_min_len(MIN_CHUNK)
-            .map(|((&d, &w), s)| shade_hit(world, settings, (d, w), &at(s), |_, _| {}))
-            .collect_into_vec(hits.emitted);
-        for col in [shadows.origin, shadows.direction, shadows.radiance] {
-            col.clear();
-        }
-        shadows.t_max.clear();
-        shadows.slot.clear();
-    }
+    ((hits.direction, hits.weight), surface)
+        .into_par_iter()
+        .with_min_len(MIN_CHUNK)
+        .map(|((&d, &w), (&point, &normal, &material, &spawn))| {
+            let s = Surface {
+                point,
+                normal,
+                material,
+                spawn,
+            };
+            shade_hit(world, settings, (d, w), &s)
+        })
+        .collect_into_vec(hits.emitted);
+}
+
+/// Spawns the shadow rays of `pass` (`shadows` is overwritten): for every hit of the pass and
+/// every light of the pass that can light it, in (hit, light) order — slot order.
+pub fn spawn_shadow_rays(
+    world: &World,
+    settings: &ShadeSettings,
+    pass: &ShadowPass,
+    hits: ShadedHits<'_>,
+    scratch: &mut ShadeScratch,
+    shadows: ShadowRays<'_>,
+) {
+    let lights = &world.lights()[pass.lights.clone()];
+    let per_hit = lights.len().max(1);
+    let rows = pass.rows();
+    debug_assert!(rows <= MAX_SHADOW_ROWS);
+    let r = pass.hits.clone();
+    scratch.radiance.clear();
+    scratch.radiance.resize(rows, Vec3::ZERO);
+    (
+        (&hits.direction[r.clone()], &hits.weight[r.clone()]),
+        (&hits.point[r.clone()], &hits.normal[r.clone()]),
+        &hits.material[r.clone()],
+        scratch.radiance.par_chunks_mut(per_hit),
+    )
+        .into_par_iter()
+        .with_min_len((MIN_CHUNK / per_hit).max(1))
+        .for_each(|((&d, &w), (&p, &n), &material, out)| {
+            let m = &world.materials()[material as usize];
+            for (o, light) in out.iter_mut().zip(lights) {
+                *o = shadow_radiance(light, m, settings.specular, (d, w), (p, n));
+            }
+        });
+    let radiance = &scratch.radiance;
+    kept_rows(rows, |i| radiance[i] != Vec3::ZERO, &mut scratch.rows);
+    let kept = &scratch.rows;
+    let hit = |k: RowIndex| r.start + k.get() / per_hit;
+    let light = |k: RowIndex| &lights[k.get() % per_hit];
+    let each = || kept.par_iter().with_min_len(MIN_CHUNK);
+    each()
+        .map(|&k| hits.spawn[hit(k)])
+        .collect_into_vec(shadows.origin);
+    each()
+        .map(|&k| shadow_ray(hits.spawn[hit(k)], light(k)))
+        .unzip_into_vecs(shadows.direction, shadows.t_max);
+    each()
+        .map(|&k| radiance[k.get()])
+        .collect_into_vec(shadows.radiance);
+    each()
+        .map(|&k| hits.slot[hit(k)])
+        .collect_into_vec(shadows.slot);
 }
 
 /// The hit/miss mask variant of shade: every hit emits its weight (white for primary rays).
@@ -292,6 +384,30 @@ mod tests {
         q
     }
 
+    /// `shade_hits`, then the shadow rays of every hit and light in one pass (when shadows are on).
+    fn shade_in_one_pass(
+        world: &World,
+        settings: &ShadeSettings,
+        hits: &mut HitQueue,
+        shadows: &mut ShadowQueue,
+    ) {
+        shade_hits(world, settings, ShadeHits::of(hits));
+        if settings.shadows {
+            let pass = ShadowPass {
+                hits: 0..hits.len(),
+                lights: 0..world.lights().len(),
+            };
+            spawn_shadow_rays(
+                world,
+                settings,
+                &pass,
+                ShadedHits::of(hits),
+                &mut ShadeScratch::default(),
+                ShadowRays::of(shadows),
+            );
+        }
+    }
+
     #[test]
     fn without_shadows_everything_is_emitted_at_once() {
         let mut scene = spheres();
@@ -300,13 +416,7 @@ mod tests {
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
         let mut shadows = ShadowQueue::default();
-        shade_hits(
-            &world,
-            &settings,
-            ShadeHits::of(&mut hits),
-            &mut ShadeScratch::default(),
-            ShadowRays::of(&mut shadows),
-        );
+        shade_in_one_pass(&world, &settings, &mut hits, &mut shadows);
         let emitted = &hits.emitted;
         assert!(shadows.is_empty());
         assert_eq!(emitted.len(), 3);
@@ -336,13 +446,7 @@ mod tests {
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
         let mut shadows = ShadowQueue::default();
-        shade_hits(
-            &world,
-            &settings,
-            ShadeHits::of(&mut hits),
-            &mut ShadeScratch::default(),
-            ShadowRays::of(&mut shadows),
-        );
+        shade_in_one_pass(&world, &settings, &mut hits, &mut shadows);
         let emitted = &hits.emitted;
         assert_eq!(emitted[0], Vec3::new(0.0, 0.2, 0.0), "ambient only");
         assert_eq!(emitted[1], Vec3::splat(0.1), "(1 − α)·ka");
@@ -370,13 +474,7 @@ mod tests {
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
         let mut shadows = ShadowQueue::default();
-        shade_hits(
-            &world,
-            &settings,
-            ShadeHits::of(&mut hits),
-            &mut ShadeScratch::default(),
-            ShadowRays::of(&mut shadows),
-        );
+        shade_in_one_pass(&world, &settings, &mut hits, &mut shadows);
         assert!(
             shadows.slot.iter().all(|&s| s != SampleSlot(1)),
             "floor hit is lit from behind"
@@ -407,5 +505,89 @@ mod tests {
         // Light at the hit point.
         let (c, _) = direct_light(&light, &m, true, light.position, Vec3::Z, Vec3::Z);
         assert_eq!(c, Vec3::ZERO);
+    }
+
+    #[test]
+    fn passes_cover_every_hit_and_light_once_within_the_budget() {
+        for (hits, lights, budget) in [
+            (150, 40, 1000),
+            (150, 40, usize::MAX),
+            (5000, 3, 1000),
+            (1000, 7, 1000),
+            (7, 1, 1),
+            (0, 5, 10),
+            (10, 0, 10),
+            (0, 0, 0),
+        ] {
+            let passes: Vec<_> = ShadowPass::plan(hits, lights, budget).collect();
+            assert!(!passes.is_empty());
+            assert!(passes[0].is_first());
+            assert_eq!(passes.iter().filter(|p| p.is_first()).count(), 1);
+            let mut seen = vec![0u32; hits * lights];
+            for p in &passes {
+                assert!(p.rows() <= budget.max(1), "{p:?} over {budget}");
+                for h in p.hits.clone() {
+                    for l in p.lights.clone() {
+                        seen[h * lights + l] += 1;
+                    }
+                }
+            }
+            assert!(seen.iter().all(|&n| n == 1), "{hits} × {lights}, {budget}");
+            // Each hit meets its lights in index order.
+            for h in 0..hits {
+                let order: Vec<_> = passes
+                    .iter()
+                    .filter(|p| p.hits.contains(&h))
+                    .flat_map(|p| p.lights.clone())
+                    .collect();
+                assert_eq!(order, (0..lights).collect::<Vec<_>>());
+            }
+        }
+        assert_eq!(
+            ShadowPass::plan(150, 40, 1000).count(),
+            7,
+            "6 lights a pass"
+        );
+        assert_eq!(ShadowPass::plan(5000, 3, 1000).count(), 15);
+    }
+
+    #[test]
+    fn shadow_rays_split_into_passes_are_the_unsplit_rays() {
+        let mut scene = spheres();
+        scene.lights = (0..5)
+            .map(|i| crate::scene::PointLight {
+                position: glam::DVec3::new(-4.0 + 2.0 * i as f64, 4.0, -3.0 + i as f64),
+                intensity: Vec3::splat(0.3),
+            })
+            .collect();
+        let world = World::load(&scene).unwrap();
+        let settings = ShadeSettings::for_scene(&scene);
+        let mut hits = scene_a_hits(&world);
+        let mut whole = ShadowQueue::default();
+        shade_in_one_pass(&world, &settings, &mut hits, &mut whole);
+        assert!(whole.len() > 5);
+        let mut joined = ShadowQueue::default();
+        let mut rows = vec![];
+        for pass in ShadowPass::plan(hits.len(), world.lights().len(), 4) {
+            let mut part = ShadowQueue::default();
+            spawn_shadow_rays(
+                &world,
+                &settings,
+                &pass,
+                ShadedHits::of(&hits),
+                &mut ShadeScratch::default(),
+                ShadowRays::of(&mut part),
+            );
+            rows.extend((0..part.len()).map(|i| part.get(i)));
+        }
+        rows.sort_by_key(|r| r.slot); // stable: each hit's lights stay in order
+        for r in rows {
+            joined.push(r);
+        }
+        assert_eq!(joined.slot, whole.slot);
+        assert_eq!(joined.origin, whole.origin);
+        assert_eq!(joined.direction, whole.direction);
+        assert_eq!(joined.t_max, whole.t_max);
+        assert_eq!(joined.radiance, whole.radiance);
     }
 }

@@ -96,6 +96,7 @@ fn a_region_renders_exactly_the_full_images_pixels_there() {
         let options = RenderOptions {
             wave_samples: 1000,
             region: Some(region),
+            ..RenderOptions::default()
         };
         let film = render_film_with(&scene, options);
         assert_eq!((film.width, film.height), (region.width(), region.height()));

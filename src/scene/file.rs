@@ -29,6 +29,14 @@ pub const MAX_SAMPLES: u32 = 1 << 16;
 /// Largest accepted reflection depth.
 pub const MAX_DEPTH: u32 = 64;
 
+// Every product of the limits fits the type the renderer keeps it in, so validating each value
+// validates the products: pixels (`width × height`) index as `u32`, samples (`× samples`) count
+// as `u64`. Raising a limit past these fails to compile rather than wrapping at run time.
+const _: () = assert!(MAX_IMAGE_SIDE as u64 * MAX_IMAGE_SIDE as u64 <= u32::MAX as u64);
+const _: () = assert!(
+    (MAX_IMAGE_SIDE as u128 * MAX_IMAGE_SIDE as u128 * MAX_SAMPLES as u128) <= u64::MAX as u128
+);
+
 type V3 = Spanned<[f64; 3]>;
 
 #[derive(Deserialize)]
@@ -963,5 +971,20 @@ material = "m"
         let s = parse(&text, Path::new("dir/s.toml")).unwrap();
         assert_eq!(s.meshes[0].path, Path::new("dir/m.obj"));
         assert_eq!(s.meshes[0].kdtree, TreeSource::File("dir/t.kd".into()));
+    }
+
+    #[test]
+    fn the_largest_image_counts_its_pixels_and_samples_without_wrapping() {
+        let side = MAX_IMAGE_SIDE;
+        let text =
+            format!("[image]\nwidth = {side}\nheight = {side}\nsamples = {MAX_SAMPLES}\n{MINIMAL}");
+        let s = parse(&text, Path::new("t.toml")).unwrap();
+        assert_eq!(s.image.pixel_count(), 1 << 30);
+        assert_eq!(s.image.sample_count(), Some(1 << 46));
+        let e = parse_err(&format!(
+            "[image]\nwidth = {}\n{MINIMAL}",
+            MAX_IMAGE_SIDE + 1
+        ));
+        assert!(e.starts_with("t.toml:2: image.width:"), "{e}");
     }
 }

@@ -34,6 +34,20 @@ pub struct ImageSettings {
     pub seed: u32,
 }
 
+impl ImageSettings {
+    /// Pixels in the image, `width × height`, computed in `u64` so it never wraps. Scene files keep
+    /// it within `u32` (pixel indices are `u32`): see [`file::MAX_IMAGE_SIDE`].
+    pub fn pixel_count(&self) -> u64 {
+        u64::from(self.width) * u64::from(self.height)
+    }
+
+    /// Samples in the image, `width × height × samples`, or `None` where that overflows `u64`
+    /// (never within the scene-file limits: at most 2^46).
+    pub fn sample_count(&self) -> Option<u64> {
+        self.pixel_count().checked_mul(u64::from(self.samples))
+    }
+}
+
 /// What the film records for each sample.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum RenderMode {

@@ -1,13 +1,15 @@
-//! The schedule: the one place that orders the stages. Reading [`render`]'s loop top to bottom is
-//! reading the renderer.
+//! The schedule: the one place that orders the stages. Reading [`render_into`]'s loop top to
+//! bottom is reading the renderer.
 //!
 //! ```text
 //! for each wave of ≤ wave_samples samples (whole pixels):
 //!   depth 0: generate ─► rays[0]
 //!   depth k: intersect(rays[k]) ─► hits ─► shade ─► emitted ─────────────► samples
 //!                                           │    └► shadow rays ─► shadow ─► samples (unoccluded)
+//!                                           │       (shade → shadow once per pass of
+//!                                           │        ≤ shadow_rows hits × lights)
 //!                                           └► reflect (k < max_depth) ─► rays[k+1]
-//!   resolve: samples ─► pixels (box filter)
+//!   resolve: samples ─► pixels (box filter) ─► sink (the film, or a streaming image file)
 //! ```
 //!
 //! [`Pipeline::for_scene`] leaves out what a scene does not need: no reflect stage without a
@@ -20,8 +22,10 @@ pub mod stage;
 use std::fmt;
 use std::time::Instant;
 
-use crate::film::{Film, SampleBuffer};
-use crate::queue::{HitColumns, HitQueue, RayQueue, RowIndex, ShadowQueue};
+use glam::Vec3;
+
+use crate::film::{Film, PixelSink, SampleBuffer, resolve_wave};
+use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, RowIndex, ShadowQueue};
 use crate::region::Region;
 use crate::scene::{RenderMode, Scene};
 use crate::stages::generate::{CameraRays, generate_camera_rays};
@@ -30,8 +34,8 @@ use crate::stages::intersect::{
 };
 use crate::stages::reflect::{NextRays, ReflectHits, spawn_reflection_rays};
 use crate::stages::shade::{
-    EmittedHits, MaskHits, Samples, ShadeHits, ShadeScratch, ShadeSettings, ShadowRays,
-    add_emitted, shade_hit_mask, shade_hits,
+    EmittedHits, MAX_SHADOW_ROWS, MaskHits, Samples, ShadeHits, ShadeScratch, ShadeSettings,
+    ShadedHits, ShadowPass, ShadowRays, add_emitted, shade_hit_mask, shade_hits, spawn_shadow_rays,
 };
 use crate::stages::shadow::{LitRays, ShadowTrace, add_unoccluded, intersect_occluded};
 use crate::stats::Stats;
@@ -42,6 +46,16 @@ pub use stage::Stage;
 
 /// Default cap on samples per wave: bounds memory whatever the samples per pixel.
 pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 20;
+
+/// Largest accepted cap on samples per wave: a wave's sample slots are `u32`, and its queues must
+/// fit in memory (2^28 samples already need tens of GB).
+pub const MAX_WAVE_SAMPLES: usize = 1 << 28;
+
+/// Default cap on the shadow rays one shade → shadow pass spawns (hits × lights of the pass):
+/// bounds memory whatever the number of lights. About 61 bytes a row (candidate radiance, kept
+/// row index, the shadow queue's columns): 2^19 rows are 32 MB, which keeps scene A with 2,000
+/// lights within 1.5× the peak memory of scene A with one (2^20 rows came to 2.03×).
+pub const DEFAULT_SHADOW_ROWS: usize = 1 << 19;
 
 /// The stages one depth runs, in order.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -100,6 +114,16 @@ impl Pipeline {
     /// True when some depth runs `stage`.
     pub fn runs(&self, stage: Stage) -> bool {
         self.depths.iter().any(|d| d.stages.contains(&stage))
+    }
+
+    /// Lights reached through shadow rays, whose passes [`ShadowPass::plan`] lays out: all of
+    /// `world`'s when shadows are traced, none when they are off or for the hit mask.
+    pub fn traced_lights(&self, world: &World) -> usize {
+        if self.shade.shadows && !self.mask {
+            world.lights().len()
+        } else {
+            0
+        }
     }
 }
 
@@ -181,6 +205,9 @@ pub struct RenderOptions {
     /// Its pixels are exactly the full render's there: samples are seeded by the whole image's
     /// pixel index, whatever the waves.
     pub region: Option<Region>,
+    /// Upper bound on the shadow rays of one shade → shadow pass (hits × lights; clamped to
+    /// `1..=MAX_SHADOW_ROWS`). Any value gives the same image; smaller ones use less memory.
+    pub shadow_rows: usize,
 }
 
 impl Default for RenderOptions {
@@ -188,17 +215,22 @@ impl Default for RenderOptions {
         RenderOptions {
             wave_samples: DEFAULT_WAVE_SAMPLES,
             region: None,
+            shadow_rows: DEFAULT_SHADOW_ROWS,
         }
     }
 }
 
 impl RenderOptions {
-    /// Pixels per wave for `scene`: `wave_samples / spp`, at least one, at most the image.
+    /// Pixels per wave for `scene`: `wave_samples` (clamped to `1..=MAX_WAVE_SAMPLES`) divided by
+    /// the samples per pixel, at least one, at most the image. A wave's samples therefore never
+    /// exceed `max(MAX_WAVE_SAMPLES, spp)`, so its sample slots fit a `u32`.
     pub fn pixels_per_wave(&self, scene: &Scene) -> u32 {
         let image = &scene.image;
-        let spp = image.samples.max(1) as usize;
-        let total = image.width as usize * image.height as usize;
-        (self.wave_samples / spp).clamp(1, total.max(1)) as u32
+        let spp = u64::from(image.samples.max(1));
+        let cap = self.wave_samples.clamp(1, MAX_WAVE_SAMPLES) as u64;
+        let total = image.pixel_count().max(1);
+        // total ≤ u32::MAX for a validated scene; the clamp keeps the cast exact regardless.
+        (cap / spp).clamp(1, total.min(u64::from(u32::MAX))) as u32
     }
 
     /// The region rendered for `scene`: [`RenderOptions::region`] clipped to the image, or the
@@ -244,6 +276,8 @@ pub struct WaveQueues {
     pub shadows: ShadowQueue,
     /// The wave's samples.
     pub samples: SampleBuffer,
+    /// The wave's resolved pixels (linear radiance), handed to the sink.
+    pub pixels: Vec<Vec3>,
     rows: Vec<RowIndex>,
     shade: ShadeScratch,
 }
@@ -276,15 +310,33 @@ pub fn render(
     (film, stats)
 }
 
-/// Renders `scene`, showing every stage call and wave to `observer`. This is the renderer: for
-/// each wave, for each depth of the [`Pipeline`], each of that depth's stages in order. The film
-/// covers [`RenderOptions::region_of`] the scene.
+/// Renders `scene` into an in-memory [`Film`], showing every stage call and wave to `observer`
+/// ([`render_into`] with a film as the sink).
 pub fn render_observed(
     scene: &Scene,
     world: &World,
     options: &RenderOptions,
-    mut observer: impl Observer,
+    observer: impl Observer,
 ) -> Film {
+    let region = options.region_of(scene);
+    let mut film = Film::new(region.width(), region.height());
+    render_into(scene, world, options, observer, &mut film);
+    film
+}
+
+/// Renders `scene`, showing every stage call and wave to `observer` and handing each wave's
+/// resolved pixels to `sink` as soon as the wave is done. This is the renderer: for each wave, for
+/// each depth of the [`Pipeline`], each of that depth's stages in order — shade and shadow once
+/// per [`ShadowPass`] of at most `options.shadow_rows` shadow rays. Stops early, after a wave, when
+/// the sink no longer [accepts](PixelSink::accepts) pixels. The sink receives the pixels of
+/// [`RenderOptions::region_of`] the scene, row-major within the region.
+pub fn render_into(
+    scene: &Scene,
+    world: &World,
+    options: &RenderOptions,
+    mut observer: impl Observer,
+    sink: &mut impl PixelSink,
+) {
     // Camera rays start at the frame's origin: trace in the frame of this scene's eye (a world
     // loaded for another camera of a path is moved, not rebuilt).
     let reframed;
@@ -297,48 +349,76 @@ pub fn render_observed(
     let pipeline = Pipeline::for_scene(scene);
     let region = options.region_of(scene);
     let total = region.pixels();
-    let mut film = Film::new(region.width(), region.height());
     let mut ws = WaveQueues::default();
     let mut done = 0;
+    let traced_lights = pipeline.traced_lights(world);
 
     for wave in waves(scene, options) {
         ws.samples.reset(wave.len());
         'depths: for plan in &pipeline.depths {
-            for &stage in &plan.stages {
-                if stage == Stage::Intersect && ws.rays.is_empty() {
-                    break 'depths; // every ray of the previous depth missed or stopped
-                }
+            let mut call = |stage, pass: &ShadowPass, ws: &mut WaveQueues| {
                 observer.before(stage, plan.depth, &ws.queues(&wave));
                 let start = Instant::now();
-                let (rays_in, rays_out) = run_stage(stage, scene, world, &pipeline, &wave, &mut ws);
+                let (rays_in, rays_out) =
+                    run_stage(stage, scene, world, &pipeline, &wave, pass, ws);
                 let run = StageRun {
                     stage,
                     depth: plan.depth,
+                    first_pass: pass.is_first(),
                     rays_in,
                     rays_out,
                     elapsed: start.elapsed(),
                 };
                 observer.after(&run, &ws.queues(&wave));
+            };
+            for &stage in &plan.stages {
+                match stage {
+                    // Every ray of the previous depth missed or stopped.
+                    Stage::Intersect if ws.rays.is_empty() => break 'depths,
+                    // Direct light, a bounded pass at a time: shade spawns the shadow rays of a
+                    // block of hits × lights and shadow traces them before the next block.
+                    Stage::Shade => {
+                        let shadow = plan.stages.contains(&Stage::Shadow);
+                        let passes =
+                            ShadowPass::plan(ws.hits.len(), traced_lights, options.shadow_rows);
+                        for pass in passes {
+                            call(Stage::Shade, &pass, &mut ws);
+                            if shadow {
+                                call(Stage::Shadow, &pass, &mut ws);
+                            }
+                        }
+                    }
+                    Stage::Shadow => {} // run with each shade pass, above
+                    stage => call(stage, &ShadowPass::default(), &mut ws),
+                }
             }
             // The next depth traces the reflections this one spawned.
             std::mem::swap(&mut ws.rays, &mut ws.next);
             ws.next.clear();
         }
-        film.resolve_wave(&ws.samples, &wave);
+        resolve_wave(&ws.samples, &wave, &mut ws.pixels);
+        sink.put(PixelIndex(wave.first), &ws.pixels);
         done += u64::from(wave.pixels);
         observer.wave_done(done, total);
+        if !sink.accepts() {
+            break;
+        }
     }
-    film
 }
 
 /// Runs one stage's kernels on a wave's queues; returns (rays in, rays out). The one dispatch
 /// from stage to kernels: the render loop above and the stage benchmarks both call it.
+///
+/// `pass` matters to `shade` only: its first pass (of a depth) shades the hits and adds their
+/// emitted radiance (rays in: the hits), and every pass spawns the shadow rays of its hits and
+/// lights (rays out; later passes read no new rays: rays in 0). Other stages ignore it.
 pub fn run_stage(
     stage: Stage,
     scene: &Scene,
     world: &World,
     pipeline: &Pipeline,
     wave: &Wave,
+    pass: &ShadowPass,
     ws: &mut WaveQueues,
 ) -> (usize, usize) {
     match stage {
@@ -366,19 +446,31 @@ pub fn run_stage(
             (ws.rays.len(), ws.hits.len())
         }
         Stage::Shade => {
-            if pipeline.mask {
-                shade_hit_mask(MaskHits::of(&mut ws.hits));
-            } else {
-                shade_hits(
+            let first = pass.is_first();
+            if first {
+                if pipeline.mask {
+                    shade_hit_mask(MaskHits::of(&mut ws.hits));
+                } else {
+                    shade_hits(world, &pipeline.shade, ShadeHits::of(&mut ws.hits));
+                }
+                add_emitted(EmittedHits::of(&ws.hits), Samples::of(&mut ws.samples));
+            }
+            let rays_in = if first { ws.hits.len() } else { 0 };
+            if pipeline.shade.shadows && !pipeline.mask {
+                debug_assert!(pass.rows() <= MAX_SHADOW_ROWS);
+                spawn_shadow_rays(
                     world,
                     &pipeline.shade,
-                    ShadeHits::of(&mut ws.hits),
+                    pass,
+                    ShadedHits::of(&ws.hits),
                     &mut ws.shade,
                     ShadowRays::of(&mut ws.shadows),
                 );
+                (rays_in, ws.shadows.len())
+            } else {
+                ws.shadows.clear();
+                (rays_in, 0)
             }
-            add_emitted(EmittedHits::of(&ws.hits), Samples::of(&mut ws.samples));
-            (ws.hits.len(), ws.shadows.len())
         }
         Stage::Shadow => {
             intersect_occluded(world, ShadowTrace::of(&mut ws.shadows));

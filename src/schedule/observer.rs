@@ -35,7 +35,10 @@ pub struct StageRun {
     pub stage: Stage,
     /// The bounce counter.
     pub depth: u32,
-    /// Rays read (0 for `generate`).
+    /// False for the second and later shade → shadow passes of a depth (see
+    /// [`crate::stages::shade::ShadowPass`]); true for every other call.
+    pub first_pass: bool,
+    /// Rays read (0 for `generate`, and for `shade` after a depth's first pass).
     pub rays_in: usize,
     /// Rays produced: camera rays, hits, shadow rays, unoccluded shadow rays, reflection rays.
     pub rays_out: usize,

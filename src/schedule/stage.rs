@@ -11,7 +11,7 @@ use crate::queue::{Access, Column, ColumnAccess};
 use crate::stages::generate::CameraRays;
 use crate::stages::intersect::{ClosestOut, ClosestRays, CompactHits, CompactOut, CompactRays};
 use crate::stages::reflect::{NextRays, ReflectHits};
-use crate::stages::shade::{EmittedHits, MaskHits, Samples, ShadeHits, ShadowRays};
+use crate::stages::shade::{EmittedHits, MaskHits, Samples, ShadeHits, ShadedHits, ShadowRays};
 use crate::stages::shadow::{LitRays, ShadowTrace};
 
 /// A stage: one system of the schedule, one or more kernels over queues.
@@ -55,7 +55,7 @@ impl Stage {
         match self {
             Stage::Generate => &["generate_camera_rays"],
             Stage::Intersect => &["intersect_closest", "compact_hits"],
-            Stage::Shade => &["shade_hits", "add_emitted"],
+            Stage::Shade => &["shade_hits", "add_emitted", "spawn_shadow_rays"],
             Stage::Shadow => &["intersect_occluded", "add_unoccluded"],
             Stage::Reflect => &["spawn_reflection_rays"],
         }
@@ -87,9 +87,10 @@ impl Stage {
             .concat(),
             Stage::Shade => [
                 ShadeHits::COLUMNS,
-                ShadowRays::COLUMNS,
                 EmittedHits::COLUMNS,
                 Samples::COLUMNS,
+                ShadedHits::COLUMNS,
+                ShadowRays::COLUMNS,
             ]
             .concat(),
             Stage::Shadow => [ShadowTrace::COLUMNS, LitRays::COLUMNS, Samples::COLUMNS].concat(),

@@ -24,7 +24,7 @@ use crate::frame::RenderFrame;
 #[derive(Debug, Error)]
 pub enum TreeError {
     /// The file could not be opened or read.
-    #[error("cannot read tree file {path}: {source}")]
+    #[error("cannot read tree file {path}")]
     Io {
         /// File that failed.
         path: PathBuf,

@@ -16,8 +16,12 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::frame::RenderFrame;
 use wavefront::mesh::{ObjMesh, TriangleMesh};
+use wavefront::output::{ImageFormat, ImageMeta, ImageStream};
 use wavefront::scene::overrides::Overrides;
-use wavefront::{Pipeline, RenderOptions, Scene, Stage, World, load_scene, render};
+use wavefront::schedule::{MAX_WAVE_SAMPLES, Progress as ProgressObserver};
+use wavefront::{
+    Pipeline, RenderOptions, Scene, Stage, Stats, World, load_scene, render, render_into,
+};
 
 #[derive(Parser)]
 #[command(
@@ -139,7 +143,7 @@ struct RenderArgs {
     /// No progress and no summary line: errors only.
     #[arg(long, short)]
     quiet: bool,
-    /// Upper bound on samples traced per wave (bounds memory).
+    /// Upper bound on samples traced per wave (bounds memory; 1 to 2^28).
     #[arg(long, default_value_t = wavefront::schedule::DEFAULT_WAVE_SAMPLES)]
     wave_samples: usize,
     #[command(flatten)]
@@ -239,6 +243,8 @@ fn run_plan(args: &SceneArgs) -> Result<()> {
 fn run_render(args: RenderArgs) -> Result<()> {
     let scene = scene_from(&args.scene)?;
     let feedback = feedback::Feedback::new(args.quiet, args.stats);
+    // Refuse a bad output name before any work.
+    ImageFormat::from_path(&args.output)?;
     let jobs = plan::RenderPlan::new(&scene, &args.part, &args.output, |v| std::env::var(v).ok())?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
@@ -247,10 +253,17 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
         builder = builder.num_threads(n);
     }
+    if !(1..=MAX_WAVE_SAMPLES).contains(&args.wave_samples) {
+        bail!(
+            "invalid setting --wave-samples: {} is out of range 1..={MAX_WAVE_SAMPLES}",
+            args.wave_samples
+        );
+    }
     let pool = builder.build().context("cannot start the thread pool")?;
     let options = RenderOptions {
-        wave_samples: args.wave_samples.max(1),
+        wave_samples: args.wave_samples,
         region: jobs.region,
+        ..RenderOptions::default()
     };
     let todo: Vec<&plan::FrameJob> = jobs
         .frames
@@ -293,16 +306,42 @@ fn run_render(args: RenderArgs) -> Result<()> {
             None => None,
         };
         for job in todo {
-            // `render` moves the world to this frame's eye (World::reframed) when it moved.
+            // Rendering moves the world to this frame's eye (World::reframed) when it moved.
             let bar = feedback.progress();
-            let (film, stats) = render(&job.scene, &world, options.clone(), |done, total| {
-                bar.update(done, total)
-            });
+            let progress = ProgressObserver(|done, total| bar.update(done, total));
+            let stats = match sources {
+                // A tile keeps its (region-sized) film to write it with its metadata.
+                Some(sources) => {
+                    let (film, stats) =
+                        render(&job.scene, &world, options.clone(), |done, total| {
+                            bar.update(done, total)
+                        });
+                    plan::save_part(&film, job, jobs.region, sources)?;
+                    stats
+                }
+                // A whole image is encoded row by row as its waves finish: memory follows the
+                // wave size, not the image size.
+                None => {
+                    let image = &job.scene.image;
+                    let mut out = ImageStream::create(
+                        &job.output,
+                        (image.width, image.height),
+                        image.gamma,
+                        &ImageMeta::default(),
+                    )?;
+                    let mut stats = Stats::default();
+                    render_into(
+                        &job.scene,
+                        &world,
+                        &options,
+                        (&mut stats, progress),
+                        &mut out,
+                    );
+                    out.finish()?;
+                    stats
+                }
+            };
             bar.finish();
-            match sources {
-                Some(sources) => plan::save_part(&film, job, jobs.region, sources)?,
-                None => film.save(&job.output, job.scene.image.gamma)?,
-            }
             if jobs.announce {
                 println!("wrote {}", job.output.display());
             }

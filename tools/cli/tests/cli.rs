@@ -187,6 +187,32 @@ fn zero_samples_is_a_clean_error() {
 }
 
 #[test]
+fn a_directory_as_the_scene_says_its_cause_once() {
+    let dir = Scratch::new("dirscene");
+    let scene = std::env::temp_dir();
+    let line = assert_clean_failure(&dir, &["render", scene.to_str().unwrap()]);
+    assert!(line.starts_with("error: cannot read scene file "), "{line}");
+    // Each part of the chain once: `error: what failed: why`, never `…: why: why`.
+    let parts: Vec<&str> = line.trim_start_matches("error: ").split(": ").collect();
+    for (i, part) in parts.iter().enumerate() {
+        assert!(
+            !parts[i + 1..].contains(part),
+            "{part:?} repeated in: {line}"
+        );
+    }
+    assert_eq!(parts.len(), 2, "what failed, then the OS error: {line}");
+}
+
+#[test]
+fn an_out_of_range_wave_size_is_a_clean_error() {
+    let dir = Scratch::new("wave");
+    for n in ["0", "1000000000000"] {
+        let line = assert_clean_failure(&dir, &["render", "--wave-samples", n]);
+        assert!(line.contains("--wave-samples"), "{line}");
+    }
+}
+
+#[test]
 fn zero_threads_is_a_clean_error() {
     let dir = Scratch::new("threads");
     let line = assert_clean_failure(&dir, &["render", "--threads", "0"]);

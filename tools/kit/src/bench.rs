@@ -25,6 +25,7 @@ use wavefront::scene::Scene;
 use wavefront::schedule::{
     self, Observer, Pipeline, Queues, RenderOptions, Stage, StageRun, WaveQueues, render_observed,
 };
+use wavefront::stages::shade::{ShadedHits, ShadowPass, ShadowRays};
 use wavefront::wave::Wave;
 use wavefront::world::World;
 
@@ -40,8 +41,9 @@ pub struct DepthSnapshot {
     /// Input of `shade` and `reflect`: the compacted hits, with the surface columns shade wrote
     /// (shade rewrites them with the same values, so one copy serves both stages).
     pub hits: HitQueue,
-    /// Input of `shadow` (with the `occluded` answers the schedule computed); `None` when this
-    /// depth runs no shadow stage.
+    /// Input of `shadow` (with the `occluded` answers the schedule computed) in the depth's first
+    /// shade → shadow pass (the only one unless the lights need several); `None` when this depth
+    /// runs no shadow stage.
     pub shadows: Option<ShadowQueue>,
     /// Whether this depth runs `reflect`.
     pub reflect: bool,
@@ -87,8 +89,10 @@ impl Observer for Capture {
         match run.stage {
             Stage::Generate => {}
             Stage::Intersect => d.closest = q.closest.clone(),
-            Stage::Shade => d.hits = q.hits.clone(),
-            Stage::Shadow => d.shadows = Some(q.shadows.clone()),
+            // Later passes leave the hits as the first left them.
+            Stage::Shade if run.first_pass => d.hits = q.hits.clone(),
+            Stage::Shadow if run.first_pass => d.shadows = Some(q.shadows.clone()),
+            Stage::Shade | Stage::Shadow => {}
             Stage::Reflect => d.reflect = true,
         }
     }
@@ -100,7 +104,8 @@ impl Snapshot {
     /// row (the first rows are often all sky). Runs on the current rayon pool.
     pub fn capture(scene: &Scene, world: &World) -> Snapshot {
         let image = &scene.image;
-        let total = image.width * image.height;
+        // A validated scene has at most u32::MAX pixels.
+        let total = u32::try_from(scene.image.pixel_count()).unwrap_or(u32::MAX);
         let per_wave = RenderOptions::default().pixels_per_wave(scene);
         let rows = per_wave.div_ceil(image.width).min(image.height);
         let first_row = (image.height / 2).min(image.height - rows);
@@ -214,12 +219,19 @@ impl<'a> StageBench<'a> {
             .snapshot
             .rays(stage, depth)
             .unwrap_or_else(|| panic!("the snapshot runs no {stage} at depth {depth}"));
+        // The depth's first shade → shadow pass, as the schedule plans it.
+        let lights = self.snapshot.pipeline.traced_lights(self.world);
+        let hits = self.snapshot.depth(depth).map_or(0, |d| d.hits.len());
+        let pass = ShadowPass::plan(hits, lights, RenderOptions::default().shadow_rows)
+            .next()
+            .unwrap_or_default();
         schedule::run_stage(
             stage,
             self.scene,
             self.world,
             &self.snapshot.pipeline,
             &self.snapshot.wave,
+            &pass,
             &mut self.queues,
         );
         rays
@@ -455,8 +467,14 @@ pub fn queue_traffic_bytes(run: &StageRun, q: &Queues<'_>) -> u64 {
             other => unreachable!("queue {other} missing from the traffic model"),
         }
     };
-    run.stage
-        .columns()
+    // A depth's later shade passes only spawn shadow rays (whole hit queue counted: an upper
+    // bound when the pass covers a block of the hits).
+    let columns = if run.stage == Stage::Shade && !run.first_pass {
+        [ShadedHits::COLUMNS, ShadowRays::COLUMNS].concat()
+    } else {
+        run.stage.columns()
+    };
+    columns
         .iter()
         .map(|c| (c.column.bytes * rows(c.column.queue)) as u64)
         .sum()
@@ -610,7 +628,7 @@ pub enum BenchError {
     #[error(transparent)]
     Load(#[from] LoadError),
     /// The rayon pool could not start.
-    #[error("cannot start the thread pool: {0}")]
+    #[error("cannot start the thread pool")]
     Pool(#[from] rayon::ThreadPoolBuildError),
     /// The peer could not build its scene.
     #[error("peer: {0}")]

@@ -8,7 +8,13 @@ use wavefront::{Film, RenderOptions, Scene, World};
 
 /// Loads `scene`'s world and renders it with `options`.
 pub fn render_film_with(scene: &Scene, options: RenderOptions) -> Film {
-    let world = World::load(scene).unwrap_or_else(|e| panic!("cannot load {}: {e}", scene.name));
+    let world = World::load(scene).unwrap_or_else(|e| {
+        panic!(
+            "cannot load {}: {}",
+            scene.name,
+            wavefront::error::chain(&e)
+        )
+    });
     wavefront::render(scene, &world, options, |_, _| {}).0
 }
 
@@ -37,8 +43,13 @@ pub fn oracle_image(scene: &Scene) -> OracleImage {
         .meshes
         .iter()
         .map(|m| {
-            wavefront::mesh::ObjMesh::read(&m.path)
-                .unwrap_or_else(|e| panic!("cannot load {}: {e}", m.path.display()))
+            wavefront::mesh::ObjMesh::read(&m.path).unwrap_or_else(|e| {
+                panic!(
+                    "cannot load {}: {}",
+                    m.path.display(),
+                    wavefront::error::chain(&e)
+                )
+            })
         })
         .collect();
     render_oracle(scene, &meshes)
@@ -113,8 +124,13 @@ pub fn sibenik_crop(scene: &mut Scene, size: u32) {
 pub fn sibenik_triangles() -> Option<wavefront::mesh::TriangleMesh> {
     let path = sibenik_mesh()?;
     Some(
-        wavefront::mesh::TriangleMesh::load_obj(&path)
-            .unwrap_or_else(|e| panic!("cannot load {}: {e}", path.display())),
+        wavefront::mesh::TriangleMesh::load_obj(&path).unwrap_or_else(|e| {
+            panic!(
+                "cannot load {}: {}",
+                path.display(),
+                wavefront::error::chain(&e)
+            )
+        }),
     )
 }
 

@@ -1,0 +1,399 @@
+//! Image files: 8-bit PNG and binary PPM (P6), encoded row by row and written atomically.
+//!
+//! Reads: resolved pixels in linear radiance ([`ImageStream`], a [`PixelSink`] the schedule feeds
+//! wave by wave) or finished 8-bit RGB rows ([`write_rgb8`]). Writes: one image file.
+//!
+//! [`ImageStream`] encodes each wave's pixels to 8 bits (`round(255 · clamp(L, 0, 1)^(1/γ))`, SPEC
+//! §2) as the wave arrives and sends every completed row through a bounded channel to a writer
+//! thread, which feeds them to the PNG crate's [`png::StreamWriter`] (or writes P6 rows), so an
+//! image of any size needs memory for a wave and a few rows, never the whole image. Both paths use
+//! the same encoder and settings, so a streamed render and [`crate::Film::save`] of the same pixels
+//! write the same bytes. PNG text chunks ([`ImageMeta`]) go before the image data.
+//!
+//! Every file is written to `NAME.partial` beside its target and renamed over it only when complete
+//! ([`PartialFile`]); on any error, or when an unfinished stream is dropped, the partial file is
+//! removed, so the target appears complete or not at all.
+
+use std::fs::File;
+use std::io::{self, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::thread::JoinHandle;
+
+use crossbeam_channel::{Receiver, Sender};
+use glam::Vec3;
+use rayon::prelude::*;
+
+use crate::error::OutputError;
+use crate::film::{PixelSink, encode};
+use crate::queue::{MIN_CHUNK, PixelIndex};
+
+/// Bytes of compressed image data per PNG `IDAT` chunk (the stream writer's buffer).
+pub const PNG_IDAT_BYTES: usize = 1 << 20;
+
+/// Encoded row batches the channel to the writer thread holds before the renderer waits: bounds
+/// the memory of rows not yet written to a few waves' worth.
+const CHANNEL_BATCHES: usize = 4;
+
+/// Most black pixels encoded at once while filling a gap (pixels outside a rendered range).
+const FILL_PIXELS: u64 = 1 << 20;
+
+/// Output format, chosen by the file name's extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFormat {
+    /// `.png`: 8-bit RGB, with optional text chunks.
+    Png,
+    /// `.ppm`: binary PPM (P6), 8-bit RGB; no metadata.
+    Ppm,
+}
+
+impl ImageFormat {
+    /// The format `path`'s extension names (case-insensitive), or [`OutputError::Format`].
+    pub fn from_path(path: &Path) -> Result<ImageFormat, OutputError> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("png") => Ok(ImageFormat::Png),
+            Some("ppm") => Ok(ImageFormat::Ppm),
+            _ => Err(OutputError::Format {
+                file: path.to_path_buf(),
+            }),
+        }
+    }
+}
+
+/// Metadata written with an image: PNG `tEXt` chunks (keyword, text), in order, before the image
+/// data. Keywords must be 1–79 Latin-1 characters and texts Latin-1, or opening the file fails
+/// with [`OutputError::Encode`]. PPM files carry no metadata: it is ignored there.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct ImageMeta {
+    /// `(keyword, text)` pairs.
+    pub text: Vec<(String, String)>,
+}
+
+/// A file written under a temporary name beside its target (`NAME.partial`), renamed over the
+/// target by [`PartialFile::commit`] and removed when dropped uncommitted.
+#[derive(Debug)]
+pub struct PartialFile {
+    /// The temporary file.
+    tmp: PathBuf,
+    /// Where it goes when complete.
+    target: PathBuf,
+    /// Renamed: nothing to remove.
+    committed: bool,
+}
+
+impl PartialFile {
+    /// Creates (or truncates) `target.partial` and returns its guard and the open file.
+    pub fn create(target: &Path) -> io::Result<(PartialFile, File)> {
+        let mut name = target.file_name().unwrap_or_default().to_os_string();
+        name.push(".partial");
+        let tmp = target.with_file_name(name);
+        let file = File::create(&tmp)?;
+        let guard = PartialFile {
+            tmp,
+            target: target.to_path_buf(),
+            committed: false,
+        };
+        Ok((guard, file))
+    }
+
+    /// Renames the complete file over its target (removing it if the rename fails).
+    pub fn commit(mut self) -> io::Result<()> {
+        std::fs::rename(&self.tmp, &self.target)?;
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for PartialFile {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_file(&self.tmp);
+        }
+    }
+}
+
+/// Writes `bytes` to `path` so that the file appears complete or not at all (see
+/// [`PartialFile`]).
+pub fn write_atomically(path: &Path, bytes: &[u8]) -> io::Result<()> {
+    let (guard, mut file) = PartialFile::create(path)?;
+    file.write_all(bytes)?;
+    drop(file);
+    guard.commit()
+}
+
+/// An image file whose header is written and whose rows are to come: the encoder both
+/// [`ImageStream`]'s writer thread and [`write_rgb8`] run.
+enum Body {
+    /// PNG: the header and text chunks are written; rows go through a stream writer.
+    Png(png::Writer<BufWriter<File>>),
+    /// PPM: the P6 header is written; rows are written as they are.
+    Ppm(BufWriter<File>),
+}
+
+impl Body {
+    /// Writes the header of a `width × height` image in `format` to `file`.
+    fn start(
+        file: File,
+        format: ImageFormat,
+        (width, height): (u32, u32),
+        meta: &ImageMeta,
+        path: &Path,
+    ) -> Result<Body, OutputError> {
+        let out = BufWriter::new(file);
+        match format {
+            ImageFormat::Png => {
+                let mut encoder = png::Encoder::new(out, width, height);
+                encoder.set_color(png::ColorType::Rgb);
+                encoder.set_depth(png::BitDepth::Eight);
+                encoder.set_compression(png::Compression::Fast);
+                encoder.set_filter(png::Filter::Adaptive);
+                for (keyword, text) in &meta.text {
+                    encoder
+                        .add_text_chunk(keyword.clone(), text.clone())
+                        .map_err(|e| encode_error(path, e))?;
+                }
+                let writer = encoder.write_header().map_err(|e| encode_error(path, e))?;
+                Ok(Body::Png(writer))
+            }
+            ImageFormat::Ppm => {
+                let mut out = out;
+                write!(out, "P6\n{width} {height} 255\n").map_err(|e| io_error(path, e))?;
+                Ok(Body::Ppm(out))
+            }
+        }
+    }
+
+    /// Writes the image's rows (`expected` bytes in all, in batches of whole rows), then ends the
+    /// file and flushes it.
+    fn finish<B: AsRef<[u8]>>(
+        self,
+        batches: impl IntoIterator<Item = B>,
+        expected: u64,
+        path: &Path,
+    ) -> Result<(), OutputError> {
+        match self {
+            Body::Png(mut writer) => {
+                let mut stream = writer
+                    .stream_writer_with_size(PNG_IDAT_BYTES)
+                    .map_err(|e| encode_error(path, e))?;
+                for batch in batches {
+                    stream
+                        .write_all(batch.as_ref())
+                        .map_err(|e| io_error(path, e))?;
+                }
+                stream.finish().map_err(|e| encode_error(path, e))?;
+                writer.finish().map_err(|e| encode_error(path, e))
+            }
+            Body::Ppm(mut out) => {
+                let mut written = 0u64;
+                for batch in batches {
+                    out.write_all(batch.as_ref())
+                        .map_err(|e| io_error(path, e))?;
+                    written += batch.as_ref().len() as u64;
+                }
+                if written != expected {
+                    let missing = io::Error::new(
+                        io::ErrorKind::UnexpectedEof,
+                        format!("{written} of {expected} pixel bytes"),
+                    );
+                    return Err(io_error(path, missing));
+                }
+                out.flush().map_err(|e| io_error(path, e))
+            }
+        }
+    }
+}
+
+fn io_error(path: &Path, source: io::Error) -> OutputError {
+    OutputError::Io {
+        file: path.to_path_buf(),
+        source,
+    }
+}
+
+fn encode_error(path: &Path, source: png::EncodingError) -> OutputError {
+    match source {
+        png::EncodingError::IoError(source) => io_error(path, source),
+        source => OutputError::Encode {
+            file: path.to_path_buf(),
+            source,
+        },
+    }
+}
+
+/// Bytes of one row of 8-bit RGB.
+fn row_bytes(width: u32) -> usize {
+    3 * width as usize
+}
+
+/// Writes 8-bit RGB pixels (row-major, row 0 at the top) to `path` as PNG or binary PPM (by
+/// extension), with `meta` as PNG text chunks, atomically. The same encoder as [`ImageStream`].
+pub fn write_rgb8(
+    path: &Path,
+    (width, height): (u32, u32),
+    meta: &ImageMeta,
+    rgb: &[u8],
+) -> Result<(), OutputError> {
+    let format = ImageFormat::from_path(path)?;
+    let expected = 3 * u64::from(width) * u64::from(height);
+    debug_assert_eq!(rgb.len() as u64, expected, "rgb holds the whole image");
+    let (guard, file) = PartialFile::create(path).map_err(|e| io_error(path, e))?;
+    let body = Body::start(file, format, (width, height), meta, path)?;
+    body.finish(rgb.chunks(row_bytes(width).max(1)), expected, path)?;
+    guard.commit().map_err(|e| io_error(path, e))
+}
+
+/// An image file written while the image renders: a [`PixelSink`] that encodes each wave's
+/// pixels to 8 bits and sends every completed row to a writer thread (PNG through
+/// [`png::StreamWriter`], or PPM), so memory is bounded by the wave, not the image.
+///
+/// Pixels the schedule never delivers (outside a rendered pixel range) are black, as in a
+/// [`crate::Film`]. [`ImageStream::finish`] completes the file and renames it into place; dropping
+/// the stream unfinished, or any error, removes the partial file.
+#[derive(Debug)]
+pub struct ImageStream {
+    /// The target path (for errors).
+    path: PathBuf,
+    /// Image width, for row bookkeeping.
+    width: u32,
+    /// `1 / gamma`, cached for the per-channel encoding.
+    inv_gamma: f32,
+    /// Pixels in the image.
+    total: u64,
+    /// The next pixel expected: every pixel before it is encoded (sent, or in `pending`).
+    next: u64,
+    /// Encoded bytes not yet sent: less than one row between calls.
+    pending: Vec<u8>,
+    /// Row batches to the writer thread; `None` once the thread has stopped taking them.
+    rows: Option<Sender<Vec<u8>>>,
+    /// The writer thread and what it returns.
+    writer: Option<JoinHandle<Result<(), OutputError>>>,
+    /// The temporary file, renamed into place on success.
+    partial: Option<PartialFile>,
+}
+
+impl ImageStream {
+    /// Opens `path` (its `.partial` name) for a `width × height` image in the format its extension
+    /// names, writes the header (and `meta`'s text chunks), and starts the writer thread. Fails —
+    /// leaving no file — on an unsupported extension, an unwritable path or invalid metadata.
+    pub fn create(
+        path: &Path,
+        (width, height): (u32, u32),
+        gamma: f32,
+        meta: &ImageMeta,
+    ) -> Result<ImageStream, OutputError> {
+        let format = ImageFormat::from_path(path)?;
+        let (partial, file) = PartialFile::create(path).map_err(|e| io_error(path, e))?;
+        let body = Body::start(file, format, (width, height), meta, path)?;
+        let total = u64::from(width) * u64::from(height);
+        let (sender, receiver): (Sender<Vec<u8>>, Receiver<Vec<u8>>) =
+            crossbeam_channel::bounded(CHANNEL_BATCHES);
+        let target = path.to_path_buf();
+        let writer = std::thread::Builder::new()
+            .name("image-writer".into())
+            .spawn(move || body.finish(receiver, 3 * total, &target))
+            .map_err(|e| io_error(path, e))?;
+        Ok(ImageStream {
+            path: path.to_path_buf(),
+            width,
+            inv_gamma: 1.0 / gamma,
+            total,
+            next: 0,
+            pending: Vec::new(),
+            rows: Some(sender),
+            writer: Some(writer),
+            partial: Some(partial),
+        })
+    }
+
+    /// Encodes black up to pixel `until` (a gap the schedule did not render).
+    fn fill_black(&mut self, until: u64) {
+        while self.next < until && self.rows.is_some() {
+            let n = (until - self.next).min(FILL_PIXELS);
+            self.pending.resize(self.pending.len() + 3 * n as usize, 0);
+            self.next += n;
+            self.send_rows();
+        }
+    }
+
+    /// Sends the completed rows in `pending` to the writer thread, keeping the partial row.
+    fn send_rows(&mut self) {
+        let row = row_bytes(self.width).max(1);
+        let complete = self.pending.len() / row * row;
+        if complete == 0 {
+            return;
+        }
+        let rest = self.pending[complete..].to_vec();
+        self.pending.truncate(complete);
+        let batch = std::mem::replace(&mut self.pending, rest);
+        if let Some(rows) = &self.rows
+            && rows.send(batch).is_err()
+        {
+            // The writer thread stopped (its error comes out of `finish`).
+            self.rows = None;
+        }
+    }
+
+    /// Completes the image (black after the last delivered pixel), waits for the writer thread
+    /// and renames the file into place; or returns the first error, removing the partial file.
+    pub fn finish(mut self) -> Result<(), OutputError> {
+        self.fill_black(self.total);
+        debug_assert!(self.pending.is_empty() || self.rows.is_none());
+        self.rows = None; // closes the channel: the writer ends the file
+        let written = match self.writer.take().map(JoinHandle::join) {
+            Some(Ok(result)) => result,
+            Some(Err(_)) | None => Err(io_error(
+                &self.path,
+                io::Error::other("the image writer thread panicked"),
+            )),
+        };
+        written?;
+        match self.partial.take() {
+            Some(partial) => partial.commit().map_err(|e| io_error(&self.path, e)),
+            None => Ok(()),
+        }
+    }
+}
+
+impl PixelSink for ImageStream {
+    fn put(&mut self, first: PixelIndex, pixels: &[Vec3]) {
+        let first = u64::from(first.0);
+        debug_assert!(first >= self.next, "waves arrive in pixel order");
+        debug_assert!(first + pixels.len() as u64 <= self.total);
+        self.fill_black(first);
+        if self.rows.is_none() {
+            return;
+        }
+        let inv = self.inv_gamma;
+        let start = self.pending.len();
+        self.pending.resize(start + 3 * pixels.len(), 0);
+        self.pending[start..]
+            .par_chunks_mut(3)
+            .with_min_len(MIN_CHUNK)
+            .zip(pixels)
+            .for_each(|(rgb, p)| {
+                for (o, c) in rgb.iter_mut().zip(p.to_array()) {
+                    *o = encode(c, inv);
+                }
+            });
+        self.next = first + pixels.len() as u64;
+        self.send_rows();
+    }
+
+    fn accepts(&self) -> bool {
+        self.rows.is_some()
+    }
+}
+
+impl Drop for ImageStream {
+    fn drop(&mut self) {
+        // Unfinished: stop the writer, then let `partial` remove the file.
+        self.rows = None;
+        if let Some(writer) = self.writer.take() {
+            let _ = writer.join();
+        }
+    }
+}
