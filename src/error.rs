@@ -93,7 +93,7 @@ pub enum LoadError {
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     /// The extension is neither `.png` nor `.ppm`.
-    #[error("unsupported output format for {}: use a .png or .ppm file name", file.display())]
+    #[error("unsupported output format for {}: use a .png, .ppm or .exr file name", file.display())]
     Format {
         /// The output path.
         file: PathBuf,

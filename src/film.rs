@@ -140,8 +140,12 @@ impl Film {
         self.save_with(path, gamma, &ImageMeta::default())
     }
 
-    /// [`Film::save`] with metadata (PNG text chunks).
+    /// [`Film::save`] with metadata (PNG text chunks). A `.exr` path gets the linear radiance
+    /// (f32 RGB, no gamma, no clamp; SPEC §13) through [`crate::output::write_exr`].
     pub fn save_with(&self, path: &Path, gamma: f32, meta: &ImageMeta) -> Result<(), OutputError> {
+        if crate::output::is_exr(path) {
+            return crate::output::write_exr(path, self);
+        }
         write_rgb8(path, (self.width, self.height), meta, &self.to_rgb8(gamma))
     }
 }

@@ -152,7 +152,26 @@ pub struct ObjMesh {
     pub positions: Vec<[f64; 3]>,
     /// Vertex indices of each triangle; triangle `k` is the `k`-th face of the file.
     pub indices: Vec<[u32; 3]>,
+    /// Unit shading normal of each vertex ([`ObjRead::normals`]): the file's `vn`, or
+    /// area-weighted face normals where a model has none. Empty unless asked for.
+    pub normals: Vec<[f64; 3]>,
+    /// Index of each triangle's MTL material in the order of the file's `mtllib` libraries, or
+    /// [`NO_MATERIAL`] for faces before any `usemtl` ([`ObjRead::materials`]). Empty unless asked
+    /// for.
+    pub face_materials: Vec<u32>,
 }
+
+/// What [`ObjMesh::read_with`] reads besides positions and faces.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct ObjRead {
+    /// Per-vertex shading normals.
+    pub normals: bool,
+    /// Per-face MTL materials (the `mtllib` files are read relative to the OBJ's folder).
+    pub materials: bool,
+}
+
+/// [`ObjMesh::face_materials`] of a face before any `usemtl`.
+pub const NO_MATERIAL: u32 = u32::MAX;
 
 impl ObjMesh {
     /// Reads an OBJ file through `tobj` in f64 (triangulated, single index, all models merged in
@@ -161,6 +180,13 @@ impl ObjMesh {
     /// Errors name the file and line: unreadable file, non-finite coordinates (the `v` line),
     /// face indices out of range (the `f` line), and parse errors.
     pub fn read(path: &Path) -> Result<ObjMesh, MeshError> {
+        ObjMesh::read_with(path, ObjRead::default())
+    }
+
+    /// [`ObjMesh::read`], also reading what `what` asks for: vertex normals (`vn`, or
+    /// area-weighted ones for models without) and per-face MTL materials (tobj's MTL loader; a
+    /// library that cannot be read is an error naming the OBJ file and its `mtllib` line).
+    pub fn read_with(path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
         let text = std::fs::read_to_string(path).map_err(|source| MeshError::Read {
             path: path.to_path_buf(),
             source,
@@ -170,8 +196,13 @@ impl ObjMesh {
             single_index: true,
             ..Default::default()
         };
-        let loaded = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &options, |_| {
-            Err(tobj::LoadError::OpenFileFailed)
+        let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        let loaded = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &options, |lib| {
+            if what.materials {
+                tobj::load_mtl(dir.join(lib))
+            } else {
+                Err(tobj::LoadError::OpenFileFailed)
+            }
         });
         let invalid = |message: &str| {
             scan_for_error(&text, path).unwrap_or_else(|| MeshError::Obj {
@@ -180,7 +211,14 @@ impl ObjMesh {
             })
         };
         let models = match loaded {
-            Ok((models, _materials)) => models,
+            Ok((models, materials)) => {
+                if what.materials
+                    && let Err(e) = materials
+                {
+                    return Err(mtl_error(&text, path, &e.to_string()));
+                }
+                models
+            }
             Err(e) => return Err(invalid(&e.to_string())),
         };
         let mut mesh = ObjMesh {
@@ -190,6 +228,7 @@ impl ObjMesh {
         for model in &models {
             let m = &model.mesh;
             let base = mesh.positions.len() as u32;
+            let first = mesh.indices.len();
             mesh.positions
                 .extend(m.positions.chunks_exact(3).map(|p| [p[0], p[1], p[2]]));
             mesh.indices.extend(
@@ -197,6 +236,22 @@ impl ObjMesh {
                     .chunks_exact(3)
                     .map(|t| [t[0] + base, t[1] + base, t[2] + base]),
             );
+            if what.normals {
+                if m.normals.len() == m.positions.len() {
+                    mesh.normals
+                        .extend(m.normals.chunks_exact(3).map(|n| unit([n[0], n[1], n[2]])));
+                } else {
+                    mesh.normals.extend(area_weighted_normals(
+                        &mesh.positions,
+                        &mesh.indices[first..],
+                        base,
+                    ));
+                }
+            }
+            if what.materials {
+                let id = m.material_id.map_or(NO_MATERIAL, |i| i as u32);
+                mesh.face_materials.resize(mesh.indices.len(), id);
+            }
         }
         let n = mesh.positions.len();
         // Coordinates must also be finite as f32 (the render frame's type).
@@ -210,6 +265,11 @@ impl ObjMesh {
             return Err(invalid("invalid vertex data"));
         }
         Ok(mesh)
+    }
+
+    /// The vertices' shading normals as f32 (empty when not read).
+    pub fn normals_f32(&self) -> Vec<[f32; 3]> {
+        self.normals.iter().map(|n| n.map(|c| c as f32)).collect()
     }
 
     /// The mesh in a render frame whose origin is `origin` (world coordinates): each position
@@ -240,6 +300,45 @@ impl ObjMesh {
     /// True when the mesh has no triangles.
     pub fn is_empty(&self) -> bool {
         self.indices.is_empty()
+    }
+}
+
+/// `v / |v|`, or zero for a zero vector.
+fn unit(v: [f64; 3]) -> [f64; 3] {
+    let d = DVec3::from(v);
+    let l = d.length();
+    if l > 0.0 && l.is_finite() {
+        (d / l).to_array()
+    } else {
+        [0.0; 3]
+    }
+}
+
+/// Unit area-weighted normals of the vertices `base..` used by `faces` (each face adds its
+/// unnormalised cross product, whose length is twice its area, to its three vertices).
+fn area_weighted_normals(positions: &[[f64; 3]], faces: &[[u32; 3]], base: u32) -> Vec<[f64; 3]> {
+    let mut sum = vec![DVec3::ZERO; positions.len() - base as usize];
+    for f in faces {
+        let [a, b, c] = f.map(|i| DVec3::from(positions[i as usize]));
+        let n = (b - a).cross(c - a);
+        for &i in f {
+            sum[(i - base) as usize] += n;
+        }
+    }
+    sum.into_iter().map(|n| unit(n.to_array())).collect()
+}
+
+/// The error for an MTL library that could not be read: the OBJ file and its first `mtllib`
+/// line.
+fn mtl_error(text: &str, path: &Path, message: &str) -> MeshError {
+    let line = text
+        .lines()
+        .position(|l| l.trim_start().starts_with("mtllib"))
+        .map_or(1, |i| i + 1);
+    MeshError::Parse {
+        path: path.to_path_buf(),
+        line,
+        message: format!("cannot read its material library: {message}"),
     }
 }
 

@@ -397,3 +397,28 @@ impl Drop for ImageStream {
         }
     }
 }
+
+/// True when `path` names an OpenEXR file (`.exr`, any case).
+pub fn is_exr(path: &Path) -> bool {
+    path.extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("exr"))
+}
+
+/// Writes `film`'s linear radiance as OpenEXR (f32 RGB, no gamma, no clamp; SPEC §13),
+/// atomically. The whole film is in memory: EXR is not streamed.
+pub fn write_exr(path: &Path, film: &crate::film::Film) -> Result<(), OutputError> {
+    use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+    let width = film.width as usize;
+    let pixels = |p: Vec2<usize>| {
+        let c = film.pixels[p.y() * width + p.x()];
+        (c.x, c.y, c.z)
+    };
+    let image = Image::from_channels((width, film.height as usize), SpecificChannels::rgb(pixels));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image
+        .write()
+        .to_buffered(&mut bytes)
+        .map_err(|e| io_error(path, io::Error::other(e)))?;
+    write_atomically(path, bytes.get_ref()).map_err(|e| io_error(path, e))
+}

@@ -10,10 +10,10 @@ use crate::error::{LoadError, SceneError};
 use crate::frame::{Light, Plane, RenderFrame, Sphere};
 use crate::geometry::offset::{gamma, offset_fixed, offset_ray_origin};
 use crate::geometry::{plane, sphere, triangle};
-use crate::mesh::ObjMesh;
 use crate::mesh::TriangleMesh;
+use crate::mesh::{NO_MATERIAL, ObjMesh, ObjRead};
 use crate::queue::PrimId;
-use crate::scene::{Material, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
+use crate::scene::{Material, Normals, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
 
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -38,6 +38,9 @@ pub struct Surface {
     /// Origin for rays leaving the hit on the facing side (reflections, shadow rays toward lights
     /// in front): the point offset by its error bound.
     pub spawn: Vec3,
+    /// Unit shading normal, on the side of `normal`: `normal` itself, or the interpolated vertex
+    /// normal of a mesh with `normals = "vertex"` (used for `Ld`, `Ls` and reflection directions).
+    pub shading: Vec3,
 }
 
 /// The triangles of all meshes, merged, with their tree.
@@ -48,6 +51,9 @@ pub struct Triangles {
     mesh: TriangleMesh,
     /// The same vertices in world coordinates (f64 as read): what another frame is made from.
     world_positions: Vec<[f64; 3]>,
+    /// Unit shading normal of each vertex, or zero where its mesh shades with geometric normals;
+    /// empty when no mesh uses vertex normals.
+    vertex_normals: Vec<[f32; 3]>,
     /// Material of each triangle (one entry per mesh: `(first triangle, material)`).
     material_ranges: Vec<(u32, u32)>,
     /// The kD tree over `mesh`, prepared for traversal (leaf-ordered triangle copy).
@@ -74,6 +80,20 @@ impl Triangles {
     /// The kD tree over [`Triangles::mesh`].
     pub fn tree(&self) -> &KdTree {
         self.tree.tree()
+    }
+
+    /// The interpolated unit vertex normal of triangle `k` at barycentric coordinates `b`, or
+    /// `None` where its mesh shades with geometric normals.
+    #[inline]
+    pub fn shading_normal(&self, k: usize, b: [f32; 3]) -> Option<Vec3> {
+        if self.vertex_normals.is_empty() {
+            return None;
+        }
+        let [n0, n1, n2] =
+            self.mesh.indices[k].map(|i| Vec3::from(self.vertex_normals[i as usize]));
+        let n = b[0] * n0 + b[1] * n1 + b[2] * n2;
+        let len = n.length();
+        (len > 0.0 && len.is_finite()).then(|| n / len)
     }
 
     /// Where the tree came from.
@@ -167,6 +187,7 @@ impl World {
             Triangles {
                 mesh,
                 world_positions: t.world_positions.clone(),
+                vertex_normals: t.vertex_normals.clone(),
                 material_ranges: t.material_ranges.clone(),
                 tree,
                 source: t.source.clone(),
@@ -221,6 +242,7 @@ impl World {
         let triangles = Triangles {
             mesh,
             world_positions,
+            vertex_normals: vec![],
             material_ranges: vec![(0, material)],
             tree,
             source: TreeSource::Sah,
@@ -375,6 +397,7 @@ impl World {
     #[inline]
     pub fn surface(&self, prim: PrimId, o: Vec3, d: Vec3, t: f32) -> Surface {
         let p = o + t * d;
+        let mut shading = None;
         let (point, n, material, error) = match self.prim_kind(prim) {
             PrimKind::Sphere(i) => {
                 let s = &self.spheres[i];
@@ -392,12 +415,19 @@ impl World {
                     .as_ref()
                     .expect("triangle id without triangles");
                 let n = tris.mesh.geometric_normal(k).normalize();
-                let (p, error) = triangle::hit_point(o, d, tris.mesh.triangle(k))
-                    .unwrap_or_else(|| (p, gamma(8) * (o.abs() + (t * d).abs())));
+                let (p, error, b) = triangle::hit_point(o, d, tris.mesh.triangle(k))
+                    .unwrap_or_else(|| (p, gamma(8) * (o.abs() + (t * d).abs()), [1.0, 0.0, 0.0]));
+                shading = tris.shading_normal(k, b);
                 (p, n, tris.material(k as u32), error)
             }
         };
         let normal = if n.dot(d) > 0.0 { -n } else { n };
+        // The shading normal on the facing side (or the facing normal itself).
+        let shading = match shading {
+            Some(s) if s.dot(normal) < 0.0 => -s,
+            Some(s) => s,
+            None => normal,
+        };
         let spawn = match self.robustness.offset {
             OffsetMethod::ErrorBound => offset_ray_origin(point, error, normal),
             OffsetMethod::FixedEpsilon => offset_fixed(point, normal),
@@ -407,6 +437,7 @@ impl World {
             normal,
             material,
             spawn,
+            shading,
         }
     }
 }
@@ -418,15 +449,47 @@ fn load_triangles(
     let start = Instant::now();
     let mut mesh = TriangleMesh::default();
     let mut world_positions = vec![];
-    let mut material_ranges = Vec::with_capacity(scene.meshes.len());
+    let mut material_ranges: Vec<(u32, u32)> = Vec::with_capacity(scene.meshes.len());
+    let smooth = scene.meshes.iter().any(|m| m.normals == Normals::Vertex);
+    let mut vertex_normals = vec![];
     for m in &scene.meshes {
         if !m.path.exists() {
             return Err(crate::scene::builtin::missing_mesh(&m.path).into());
         }
-        let obj = ObjMesh::read(&m.path)?;
+        let what = ObjRead {
+            normals: m.normals == Normals::Vertex,
+            materials: m.mtl.is_some(),
+        };
+        let obj = ObjMesh::read_with(&m.path, what)?;
         let part = obj.to_frame(frame.origin)?;
         world_positions.extend_from_slice(&obj.positions);
-        material_ranges.push((mesh.len() as u32, m.material));
+        let first = mesh.len() as u32;
+        match &m.mtl {
+            None => material_ranges.push((first, m.material)),
+            Some(binding) => {
+                let fallback = binding.fallback.unwrap_or(m.material);
+                for (k, &f) in obj.face_materials.iter().enumerate() {
+                    let material = if f == NO_MATERIAL {
+                        fallback
+                    } else {
+                        binding.first + f
+                    };
+                    if material_ranges
+                        .last()
+                        .is_none_or(|&(_, last)| last != material)
+                    {
+                        material_ranges.push((first + k as u32, material));
+                    }
+                }
+            }
+        }
+        if smooth {
+            if what.normals {
+                vertex_normals.extend(obj.normals_f32());
+            } else {
+                vertex_normals.resize(vertex_normals.len() + obj.positions.len(), [0.0; 3]);
+            }
+        }
         let base = mesh.vertices.len() as u32;
         mesh.vertices.extend_from_slice(&part.vertices);
         mesh.indices
@@ -449,6 +512,7 @@ fn load_triangles(
     let triangles = Triangles {
         mesh,
         world_positions,
+        vertex_normals,
         material_ranges,
         tree,
         source,

@@ -8,9 +8,9 @@
 //! |---|---|---|---|---|
 //! | `generate` | `generate_camera_rays` | camera, image settings, wave | — | `RayQueue.{origin, direction, t_max, weight, slot}` |
 //! | `intersect` | `intersect_closest`, `compact_hits` | world geometry | `RayQueue.{origin, direction, t_max, weight, slot}`, `HitColumns.{t, prim}` | `HitColumns.{t, prim}`, `HitQueue.{origin, direction, weight, slot, t, prim}` |
-//! | `shade` | `shade_hits`, `add_emitted`, `spawn_shadow_rays` | world geometry, materials, lights; shade settings | `HitQueue.{origin, direction, t, prim, weight, slot, emitted, point, normal, material, spawn}` | `HitQueue.{point, normal, material, spawn, emitted}`, `SampleBuffer.{radiance}`, `ShadowQueue.{origin, direction, t_max, radiance, slot}` |
+//! | `shade` | `shade_hits`, `add_emitted`, `spawn_shadow_rays` | world geometry, materials, lights; shade settings | `HitQueue.{origin, direction, t, prim, weight, slot, emitted, point, normal, shading, material, spawn}` | `HitQueue.{point, normal, material, spawn, shading, emitted}`, `SampleBuffer.{radiance}`, `ShadowQueue.{origin, direction, t_max, radiance, slot}` |
 //! | `shadow` | `intersect_occluded`, `add_unoccluded` | world geometry | `ShadowQueue.{origin, direction, t_max, slot, radiance, occluded}` | `ShadowQueue.{occluded}`, `SampleBuffer.{radiance}` |
-//! | `reflect` | `spawn_reflection_rays` | world materials | `HitQueue.{spawn, normal, material, direction, weight, slot}` | `RayQueue.{origin, direction, t_max, weight, slot}` |
+//! | `reflect` | `spawn_reflection_rays` | world materials | `HitQueue.{spawn, shading, material, direction, weight, slot}` | `RayQueue.{origin, direction, t_max, weight, slot}` |
 //! <!-- registry:end -->
 
 pub mod generate;

@@ -1,6 +1,6 @@
 //! Stage `reflect`: mirror rays for the next depth from every hit on a reflective material.
 //!
-//! Reads: [`ReflectHits`] (`HitQueue.{spawn, normal, material, direction, weight, slot}`),
+//! Reads: [`ReflectHits`] (`HitQueue.{spawn, shading, material, direction, weight, slot}`),
 //! materials.
 //! Writes: [`NextRays`] — the next depth's `RayQueue` (compacted, slot order), weight `weight·α`.
 
@@ -15,7 +15,7 @@ crate::column_set! {
     /// What `spawn_reflection_rays` reads.
     pub struct ReflectHits<'a>: read HitQueue {
         spawn: Vec3,
-        normal: Vec3,
+        shading: Vec3,
         material: u32,
         direction: Vec3,
         weight: Vec3,
@@ -34,10 +34,11 @@ crate::column_set! {
     }
 }
 
-/// The reflection of hit row `i`: `r = d − 2(d·n)n` from the offset hit point, weight `weight·α`.
+/// The reflection of hit row `i` about its shading normal, `r = d − 2(d·n)n`, from the offset hit
+/// point (the geometric surface's), weight `weight·α`.
 #[inline]
 pub fn reflection_ray(world: &World, hits: &ReflectHits<'_>, i: usize) -> RayItem {
-    let (d, n) = (hits.direction[i], hits.normal[i]);
+    let (d, n) = (hits.direction[i], hits.shading[i]);
     let alpha = world.materials()[hits.material[i] as usize].alpha;
     RayItem {
         origin: hits.spawn[i],
@@ -114,6 +115,7 @@ mod tests {
             hits.point.push(p);
             hits.spawn.push(p + 1e-5 * n);
             hits.normal.push(n);
+            hits.shading.push(n);
             hits.material.push(m);
         }
         let mut next = RayQueue::default();

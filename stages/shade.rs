@@ -38,6 +38,7 @@ crate::column_set! {
         write normal: Vec3,
         write material: u32,
         write spawn: Vec3,
+        write shading: Vec3,
         write emitted: Vec3,
     }
 }
@@ -50,6 +51,7 @@ crate::column_set! {
         slot: SampleSlot,
         point: Vec3,
         normal: Vec3,
+        shading: Vec3,
         material: u32,
         spawn: Vec3,
     }
@@ -208,7 +210,7 @@ pub fn shade_hit(
                 m,
                 settings.specular,
                 surface.point,
-                surface.normal,
+                surface.shading,
                 v,
             )
             .0;
@@ -217,18 +219,23 @@ pub fn shade_hit(
     w * emitted
 }
 
-/// The radiance `light` adds to a hit if its shadow ray is unoccluded, `(1 − α)·weight·(Ld + Ls)`;
-/// zero — no shadow ray — where the light is behind the surface (blocked by the surface itself)
-/// or adds nothing.
+/// The radiance `light` adds to a hit if its shadow ray is unoccluded, `(1 − α)·weight·(Ld + Ls)`
+/// with the shading normal; zero — no shadow ray — where the light is behind the surface (the
+/// geometric `normal`'s side: blocked by the surface itself) or adds nothing.
 #[inline]
 pub fn shadow_radiance(
     light: &Light,
     m: &Material,
     specular: bool,
     (direction, weight): (Vec3, Vec3),
-    (point, normal): (Vec3, Vec3),
+    (point, normal, shading): (Vec3, Vec3, Vec3),
 ) -> Vec3 {
-    let (c, n_dot_l) = direct_light(light, m, specular, point, normal, -direction);
+    let (c, n_dot_l) = if shading == normal {
+        direct_light(light, m, specular, point, normal, -direction)
+    } else {
+        let (c, _) = direct_light(light, m, specular, point, shading, -direction);
+        (c, normal.dot((light.position - point).normalize_or_zero()))
+    };
     if n_dot_l > 0.0 && c != Vec3::ZERO {
         weight * (1.0 - m.alpha) * c
     } else {
@@ -263,34 +270,45 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
     hits.normal.resize(n, Vec3::ZERO);
     hits.material.resize(n, 0);
     hits.spawn.resize(n, Vec3::ZERO);
+    hits.shading.resize(n, Vec3::ZERO);
     (
         (
             &mut *hits.point,
             &mut *hits.normal,
             &mut *hits.material,
             &mut *hits.spawn,
+            &mut *hits.shading,
         ),
         (hits.prim, hits.origin, hits.direction, hits.t),
     )
         .into_par_iter()
         .with_min_len(MIN_CHUNK)
-        .for_each(|((p, nrm, m, sp), (&prim, &o, &d, &t))| {
+        .for_each(|((p, nrm, m, sp, sh), (&prim, &o, &d, &t))| {
             let s = world.surface(prim, o, d, t);
-            (*p, *nrm, *m, *sp) = (s.point, s.normal, s.material, s.spawn);
+            (*p, *nrm, *m, *sp, *sh) = (s.point, s.normal, s.material, s.spawn, s.shading);
         });
-    let surface = (&*hits.point, &*hits.normal, &*hits.material, &*hits.spawn);
+    let surface = (
+        &*hits.point,
+        &*hits.normal,
+        &*hits.material,
+        &*hits.spawn,
+        &*hits.shading,
+    );
     ((hits.direction, hits.weight), surface)
         .into_par_iter()
         .with_min_len(MIN_CHUNK)
-        .map(|((&d, &w), (&point, &normal, &material, &spawn))| {
-            let s = Surface {
-                point,
-                normal,
-                material,
-                spawn,
-            };
-            shade_hit(world, settings, (d, w), &s)
-        })
+        .map(
+            |((&d, &w), (&point, &normal, &material, &spawn, &shading))| {
+                let s = Surface {
+                    point,
+                    normal,
+                    material,
+                    spawn,
+                    shading,
+                };
+                shade_hit(world, settings, (d, w), &s)
+            },
+        )
         .collect_into_vec(hits.emitted);
 }
 
@@ -313,16 +331,20 @@ pub fn spawn_shadow_rays(
     scratch.radiance.resize(rows, Vec3::ZERO);
     (
         (&hits.direction[r.clone()], &hits.weight[r.clone()]),
-        (&hits.point[r.clone()], &hits.normal[r.clone()]),
+        (
+            &hits.point[r.clone()],
+            &hits.normal[r.clone()],
+            &hits.shading[r.clone()],
+        ),
         &hits.material[r.clone()],
         scratch.radiance.par_chunks_mut(per_hit),
     )
         .into_par_iter()
         .with_min_len((MIN_CHUNK / per_hit).max(1))
-        .for_each(|((&d, &w), (&p, &n), &material, out)| {
+        .for_each(|((&d, &w), (&p, &n, &sh), &material, out)| {
             let m = &world.materials()[material as usize];
             for (o, light) in out.iter_mut().zip(lights) {
-                *o = shadow_radiance(light, m, settings.specular, (d, w), (p, n));
+                *o = shadow_radiance(light, m, settings.specular, (d, w), (p, n, sh));
             }
         });
     let radiance = &scratch.radiance;

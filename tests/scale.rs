@@ -136,6 +136,8 @@ fn cornell(dir: &Scratch, delta: DVec3) -> Scene {
                 path,
                 material: m as u32,
                 kdtree: TreeSource::Sah,
+                normals: Default::default(),
+                mtl: None,
             }
         })
         .collect();
@@ -331,6 +333,8 @@ fn thin_geometry_never_leaks_light() {
                 path,
                 material,
                 kdtree: TreeSource::Sah,
+                normals: Default::default(),
+                mtl: None,
             })
             .collect();
         s.lights = vec![PointLight {

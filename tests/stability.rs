@@ -248,6 +248,8 @@ fn secondary_rays_leaving_triangles_far_out_never_rehit_them() {
             path: "quad".into(),
             material: 0,
             kdtree: TreeSource::Sah,
+            normals: Default::default(),
+            mtl: None,
         }];
         let world = World::with_mesh(&scene, &mesh, BuildMethod::Sah);
         let mut rng = Rng(7 + scale.to_bits() as u64);
@@ -322,6 +324,8 @@ fn no_light_leaks_into_a_closed_thin_walled_box() {
                 path: "box".into(),
                 material: 0,
                 kdtree: TreeSource::Sah,
+                normals: Default::default(),
+                mtl: None,
             }];
             scene.render.shadows = true;
             scene.render.max_depth = 0;

@@ -135,16 +135,17 @@ impl WatertightRay {
 /// The hit point of a ray on triangle `(p0, p1, p2)` reconstructed from its barycentric
 /// coordinates, `p = b0·p0 + b1·p1 + b2·p2`, with its error bound `γ(7)·Σ|bᵢ·pᵢ|` (PBR 4th ed.
 /// §6.8.4): unlike `o + t·d`, whose error grows with the distance travelled, this point lies on the
-/// triangle's plane within a few ulps of the vertices' own magnitude. `None` when the ray cannot
-/// be prepared or sees the triangle edge-on.
+/// triangle's plane within a few ulps of the vertices' own magnitude. Also returns the
+/// barycentric coordinates (for interpolated shading normals). `None` when the ray cannot be
+/// prepared or sees the triangle edge-on.
 #[inline]
-pub fn hit_point(origin: Vec3, dir: Vec3, tri: [Vec3; 3]) -> Option<(Vec3, Vec3)> {
+pub fn hit_point(origin: Vec3, dir: Vec3, tri: [Vec3; 3]) -> Option<(Vec3, Vec3, [f32; 3])> {
     let ray = WatertightRay::new(origin, dir)?;
-    let [b0, b1, b2] = ray.barycentrics(tri[0].into(), tri[1].into(), tri[2].into())?;
-    let (q0, q1, q2) = (b0 * tri[0], b1 * tri[1], b2 * tri[2]);
+    let b = ray.barycentrics(tri[0].into(), tri[1].into(), tri[2].into())?;
+    let (q0, q1, q2) = (b[0] * tri[0], b[1] * tri[1], b[2] * tri[2]);
     let point = q0 + q1 + q2;
     let error = gamma(7) * (q0.abs() + q1.abs() + q2.abs());
-    Some((point, error))
+    Some((point, error, b))
 }
 
 /// A ray prepared for one ray/triangle test: traversal is generic over it, so the default

@@ -68,6 +68,9 @@ pub struct HitQueue {
     pub material: Vec<u32>,
     /// Origins for rays leaving each hit, offset off the surface (written by shade).
     pub spawn: Vec<Vec3>,
+    /// Unit shading normals on the facing side (written by shade): the facing normal, or an
+    /// interpolated vertex normal.
+    pub shading: Vec<Vec3>,
     /// Radiance each hit adds to its sample at once (written by shade).
     pub emitted: Vec<Vec3>,
 }
@@ -95,6 +98,7 @@ impl HitQueue {
         self.normal.clear();
         self.material.clear();
         self.spawn.clear();
+        self.shading.clear();
         self.emitted.clear();
     }
 }

@@ -183,6 +183,8 @@ pub fn sibenik(shadows: bool) -> Scene {
             path: sibenik_mesh_path(),
             material: 0,
             kdtree: TreeSource::Sah,
+            normals: Default::default(),
+            mtl: None,
         }],
     }
 }

@@ -17,7 +17,7 @@ use toml::Spanned;
 use super::camera_path::CameraKey;
 use super::lookat::LookAt;
 use super::{
-    Camera, CameraPath, ImageSettings, Material, MeshRef, OffsetMethod, Plane, PointLight,
+    Camera, CameraPath, ImageSettings, Material, MeshRef, Normals, OffsetMethod, Plane, PointLight,
     RenderMode, RenderSettings, Robustness, Scene, Sphere, SphereTest, TreeSource, TriangleTest,
 };
 use crate::error::SceneError;
@@ -154,6 +154,8 @@ struct RawSphere {
 struct RawMesh {
     path: Spanned<String>,
     material: Spanned<String>,
+    fallback_material: Option<Spanned<String>>,
+    normals: Option<Spanned<String>>,
     kdtree: Option<Spanned<String>>,
 }
 
@@ -427,17 +429,63 @@ impl Cx<'_> {
         }
 
         let mut meshes = Vec::with_capacity(raw.mesh.len());
+        // Materials read from meshes' MTL libraries, appended after the scene's own.
+        let mut library: Vec<Material> = vec![];
         for (i, m) in raw.mesh.iter().enumerate() {
             let kdtree = m.kdtree.as_ref().map_or(TreeSource::Sah, |k| {
                 TreeSource::parse(k.get_ref(), |file| self.relative(file))
             });
+            let path = self.relative(m.path.get_ref());
+            let fallback = m
+                .fallback_material
+                .as_ref()
+                .map(|f| find(f, format!("mesh[{i}].fallback_material")))
+                .transpose()?;
+            let (material, mtl) = if m.material.get_ref() == "mtl" {
+                if !path.exists() {
+                    return Err(self.err(
+                        m.path.span(),
+                        format!("mesh[{i}].path"),
+                        format!(
+                            "{} not found (material = \"mtl\" reads it now)",
+                            path.display()
+                        ),
+                    ));
+                }
+                let base = (materials.len() + library.len()) as u32;
+                let binding = super::mtl::bind(&path, fallback, base, &mut library)?;
+                (fallback.unwrap_or(0), Some(binding))
+            } else {
+                if let Some(f) = &m.fallback_material {
+                    return Err(self.err(
+                        f.span(),
+                        format!("mesh[{i}].fallback_material"),
+                        "only meaningful with material = \"mtl\"",
+                    ));
+                }
+                (find(&m.material, format!("mesh[{i}].material"))?, None)
+            };
+            let normals = match &m.normals {
+                None => Normals::Geometric,
+                Some(n) => self.choice(
+                    n,
+                    &format!("mesh[{i}].normals"),
+                    &[
+                        ("geometric", Normals::Geometric),
+                        ("vertex", Normals::Vertex),
+                    ],
+                )?,
+            };
             meshes.push(MeshRef {
-                path: self.relative(m.path.get_ref()),
-                material: find(&m.material, format!("mesh[{i}].material"))?,
+                path,
+                material,
                 kdtree,
+                normals,
+                mtl,
             });
         }
 
+        materials.extend(library);
         Ok(Scene {
             name: self.path.display().to_string(),
             image,

@@ -10,6 +10,7 @@ pub mod camera;
 pub mod camera_path;
 pub mod file;
 pub mod lookat;
+pub mod mtl;
 pub mod overrides;
 
 use std::path::PathBuf;
@@ -210,10 +211,26 @@ impl TreeSource {
 pub struct MeshRef {
     /// OBJ file (relative paths are already resolved against the scene file).
     pub path: PathBuf,
-    /// Index into [`Scene::materials`].
+    /// Index into [`Scene::materials`]: every face's material, or, with [`MeshRef::mtl`], the
+    /// material of faces before any `usemtl` (the fallback; unused without one).
     pub material: u32,
     /// Tree to use for this mesh.
     pub kdtree: TreeSource,
+    /// Shading normals (SPEC §12).
+    pub normals: Normals,
+    /// Per-face materials from the OBJ's MTL libraries (`material = "mtl"`).
+    pub mtl: Option<mtl::MtlBinding>,
+}
+
+/// Which normal shades a mesh (SPEC §12).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Normals {
+    /// The triangle's geometric normal (faceted). The default.
+    #[default]
+    Geometric,
+    /// The OBJ's `vn` (or area-weighted vertex normals) interpolated with the hit's barycentric
+    /// coordinates, on the facing side; shadow rays still start from the geometric surface.
+    Vertex,
 }
 
 /// A complete scene description.
@@ -284,7 +301,10 @@ impl Scene {
         let used = |m: u32| {
             self.spheres.iter().any(|s| s.material == m)
                 || self.planes.iter().any(|p| p.material == m)
-                || self.meshes.iter().any(|x| x.material == m)
+                || self.meshes.iter().any(|x| match &x.mtl {
+                    Some(b) => b.used.contains(&m),
+                    None => x.material == m,
+                })
         };
         self.materials
             .iter()

@@ -244,7 +244,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let scene = scene_from(&args.scene)?;
     let feedback = feedback::Feedback::new(args.quiet, args.stats);
     // Refuse a bad output name before any work.
-    ImageFormat::from_path(&args.output)?;
+    let exr = wavefront::output::is_exr(&args.output);
+    if !exr {
+        ImageFormat::from_path(&args.output)?;
+    }
     let jobs = plan::RenderPlan::new(&scene, &args.part, &args.output, |v| std::env::var(v).ok())?;
     let mut builder = rayon::ThreadPoolBuilder::new();
     if let Some(n) = args.threads {
@@ -317,6 +320,15 @@ fn run_render(args: RenderArgs) -> Result<()> {
                             bar.update(done, total)
                         });
                     plan::save_part(&film, job, jobs.region, sources)?;
+                    stats
+                }
+                // Linear HDR: the film is kept and written whole (EXR is not streamed).
+                None if exr => {
+                    let (film, stats) =
+                        render(&job.scene, &world, options.clone(), |done, total| {
+                            bar.update(done, total)
+                        });
+                    film.save(&job.output, job.scene.image.gamma)?;
                     stats
                 }
                 // A whole image is encoded row by row as its waves finish: memory follows the

@@ -120,7 +120,9 @@ pub fn compare_rgb8(a: &[u8], b: &[u8]) -> ImageDiff {
 }
 
 /// Renders `scene` with the oracle. `meshes[i]` holds the triangles of `scene.meshes[i]` (read
-/// with [`ObjMesh::read`]), which get that mesh's material; meshes not given are ignored.
+/// with [`ObjMesh::read_with`], with its per-face MTL materials when the mesh binds an MTL
+/// library), which get that mesh's material or their own; meshes not given are ignored. Shading
+/// is with geometric normals.
 pub fn render_oracle(scene: &Scene, meshes: &[ObjMesh]) -> OracleImage {
     let oracle = Oracle::new(scene, meshes);
     let (w, h) = (scene.image.width, scene.image.height);
@@ -205,7 +207,19 @@ impl<'a> Oracle<'a> {
                     .iter()
                     .map(|t| t.map(|i| DVec3::from(m.positions[i as usize]))),
             );
-            triangle_material.resize(triangles.len(), r.material as usize);
+            match &r.mtl {
+                // Per-face materials: the face's MTL material, or the fallback before any usemtl.
+                Some(b) if m.face_materials.len() == m.indices.len() => {
+                    triangle_material.extend(m.face_materials.iter().map(|&f| {
+                        if f == wavefront::mesh::NO_MATERIAL {
+                            b.fallback.unwrap_or(r.material) as usize
+                        } else {
+                            (b.first + f) as usize
+                        }
+                    }))
+                }
+                _ => triangle_material.resize(triangles.len(), r.material as usize),
+            }
         }
         let bvh = Bvh::build(&triangles);
         Oracle {
@@ -681,6 +695,8 @@ mod tests {
             path: "unused.obj".into(),
             material: 0,
             kdtree: wavefront::scene::TreeSource::Sah,
+            normals: Default::default(),
+            mtl: None,
         }];
         let mesh = ObjMesh {
             positions: vec![[-1.0, -1.0, -3.0], [1.0, -1.0, -3.0], [0.0, 1.0, -3.0]],

@@ -43,7 +43,11 @@ pub fn oracle_image(scene: &Scene) -> OracleImage {
         .meshes
         .iter()
         .map(|m| {
-            wavefront::mesh::ObjMesh::read(&m.path).unwrap_or_else(|e| {
+            let what = wavefront::mesh::ObjRead {
+                materials: m.mtl.is_some(),
+                normals: false,
+            };
+            wavefront::mesh::ObjMesh::read_with(&m.path, what).unwrap_or_else(|e| {
                 panic!(
                     "cannot load {}: {}",
                     m.path.display(),
