@@ -367,14 +367,11 @@ mod tests {
     }
 
     /// Small deterministic generator.
-    struct Lcg(u64);
-    impl Lcg {
+    /// The crate's seeded generator ([`crate::sampling::Rng`]) with this test's draws.
+    struct Draws(crate::sampling::Rng);
+    impl Draws {
         fn next(&mut self) -> u32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 33) as u32
+            (self.0.next_u64() >> 33) as u32
         }
         fn coord(&mut self) -> f32 {
             (self.next() as f32 / (1u64 << 31) as f32) * 2.0 - 1.0
@@ -383,7 +380,7 @@ mod tests {
 
     #[test]
     fn scalar_and_four_lane_steps_match_the_reference_formula() {
-        let mut rng = Lcg(0xabc);
+        let mut rng = Draws(crate::sampling::Rng(0xabc));
         let special = [
             0.0f32,
             -0.0,
@@ -394,7 +391,7 @@ mod tests {
             f32::MAX,
             1e-30,
         ];
-        let pick = |rng: &mut Lcg| {
+        let pick = |rng: &mut Draws| {
             if rng.next().is_multiple_of(4) {
                 special[(rng.next() % special.len() as u32) as usize]
             } else {
@@ -403,7 +400,7 @@ mod tests {
         };
         for _ in 0..200_000 {
             let split = pick(&mut rng);
-            let lane = |rng: &mut Lcg| {
+            let lane = |rng: &mut Draws| {
                 let o = if rng.next().is_multiple_of(4) {
                     split
                 } else {

@@ -297,14 +297,11 @@ mod tests {
         }
     }
     /// Small deterministic generator for the batch tests.
-    struct Lcg(u64);
-    impl Lcg {
+    /// The crate's seeded generator ([`crate::sampling::Rng`]) with this test's draws.
+    struct Draws(crate::sampling::Rng);
+    impl Draws {
         fn next(&mut self) -> u32 {
-            self.0 = self
-                .0
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (self.0 >> 33) as u32
+            (self.0.next_u64() >> 33) as u32
         }
         /// Uniform in [-1, 1), or (1 time in 8) a value on a coarse grid, ±0 included.
         fn coord(&mut self) -> f32 {
@@ -320,7 +317,7 @@ mod tests {
     }
 
     /// Random soup with duplicated triangles (ties) and triangles on grid planes.
-    fn soup(rng: &mut Lcg, n: usize) -> TriangleMesh {
+    fn soup(rng: &mut Draws, n: usize) -> TriangleMesh {
         let mut v = vec![];
         let mut idx = vec![];
         for k in 0..n {
@@ -348,7 +345,7 @@ mod tests {
 
     #[test]
     fn batch_and_packets_match_single_rays_bit_for_bit() {
-        let mut rng = Lcg(0x5eed);
+        let mut rng = Draws(crate::sampling::Rng(0x5eed));
         let mesh = soup(&mut rng, 1500);
         for method in [BuildMethod::Sah, BuildMethod::Midpoint] {
             let tree = KdAccel::new(KdTree::build(&mesh, method), &mesh);
