@@ -408,17 +408,95 @@ pub fn is_exr(path: &Path) -> bool {
 /// Writes `film`'s linear radiance as OpenEXR (f32 RGB, no gamma, no clamp; SPEC §13),
 /// atomically. The whole film is in memory: EXR is not streamed.
 pub fn write_exr(path: &Path, film: &crate::film::Film) -> Result<(), OutputError> {
-    use exr::prelude::{Image, SpecificChannels, Vec2, WritableImage};
+    write_exr_with(path, film, &ImageMeta::default())
+}
+
+/// [`write_exr`] with `meta`'s text as string attributes of the layer (a tile's bounds, image
+/// size and fingerprint, as PNG tiles carry them in text chunks).
+pub fn write_exr_with(
+    path: &Path,
+    film: &crate::film::Film,
+    meta: &ImageMeta,
+) -> Result<(), OutputError> {
+    use exr::prelude::{
+        AttributeValue, Encoding, Image, Layer, LayerAttributes, SpecificChannels, Text, Vec2,
+        WritableImage,
+    };
     let width = film.width as usize;
     let pixels = |p: Vec2<usize>| {
         let c = film.pixels[p.y() * width + p.x()];
         (c.x, c.y, c.z)
     };
-    let image = Image::from_channels((width, film.height as usize), SpecificChannels::rgb(pixels));
+    let mut attributes = LayerAttributes::default();
+    for (key, value) in &meta.text {
+        let (Some(k), Some(v)) = (Text::new_or_none(key), Text::new_or_none(value)) else {
+            return Err(io_error(
+                path,
+                io::Error::other(format!("attribute {key:?} is not EXR text")),
+            ));
+        };
+        attributes.other.insert(k, AttributeValue::Text(v));
+    }
+    let layer = Layer::new(
+        (width, film.height as usize),
+        attributes,
+        Encoding::FAST_LOSSLESS,
+        SpecificChannels::rgb(pixels),
+    );
     let mut bytes = std::io::Cursor::new(Vec::new());
-    image
+    Image::from_layer(layer)
         .write()
         .to_buffered(&mut bytes)
         .map_err(|e| io_error(path, io::Error::other(e)))?;
     write_atomically(path, bytes.get_ref()).map_err(|e| io_error(path, e))
+}
+
+/// An EXR file read back: its size, linear RGB pixels (row-major) and string attributes.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ExrImage {
+    /// Width and height.
+    pub size: (u32, u32),
+    /// Linear RGB, row-major, row 0 at the top.
+    pub pixels: Vec<glam::Vec3>,
+    /// The layer's string attributes.
+    pub text: Vec<(String, String)>,
+}
+
+/// Reads the first RGB layer of an OpenEXR file with its string attributes.
+pub fn read_exr(path: &Path) -> Result<ExrImage, String> {
+    use exr::prelude::{AttributeValue, ReadChannels, ReadLayers};
+    let image = exr::prelude::read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgb_channels(
+            |size, _| {
+                (
+                    size.width(),
+                    vec![glam::Vec3::ZERO; size.width() * size.height()],
+                )
+            },
+            |(w, pixels): &mut (usize, Vec<glam::Vec3>), p, (r, g, b): (f32, f32, f32)| {
+                pixels[p.y() * *w + p.x()] = glam::Vec3::new(r, g, b)
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| e.to_string())?;
+    let layer = image.layer_data;
+    let size = layer.size;
+    let text = layer
+        .attributes
+        .other
+        .iter()
+        .filter_map(|(k, v)| match v {
+            AttributeValue::Text(t) => Some((k.to_string(), t.to_string())),
+            _ => None,
+        })
+        .collect();
+    Ok(ExrImage {
+        size: (size.width() as u32, size.height() as u32),
+        pixels: layer.channel_data.pixels.1,
+        text,
+    })
 }

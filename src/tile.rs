@@ -131,26 +131,67 @@ impl TileInfo {
     }
 }
 
-/// A tile read back: its information and its 8-bit RGB pixels (the region's size).
+/// A tile read back: its information and its pixels (the region's size).
 #[derive(Clone, Debug)]
 pub struct Tile {
     /// The file it was read from (errors name it).
     pub file: PathBuf,
     /// Its bounds, image size and fingerprint.
     pub info: TileInfo,
-    /// Row-major RGB, `bounds.width() × bounds.height()` pixels.
+    /// Row-major pixels, `bounds.width() × bounds.height()` of them: 8-bit RGB for a PNG tile,
+    /// linear f32 RGB (native-endian bytes, [`Tile::hdr`]) for an EXR tile.
     pub rgb: Vec<u8>,
+    /// True for an EXR tile (linear f32 RGB, 12 bytes a pixel).
+    pub hdr: bool,
 }
 
-/// A merged image: 8-bit RGB of the full image.
+/// A merged image of the full size, in the tiles' pixel format.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Merged {
     /// Width in pixels.
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// Row-major RGB, row 0 at the top.
+    /// Row-major pixels, row 0 at the top: 8-bit RGB, or linear f32 RGB bytes when `hdr`.
     pub rgb: Vec<u8>,
+    /// True when merged from EXR tiles.
+    pub hdr: bool,
+}
+
+impl Merged {
+    /// Writes the merged image: an EXR for EXR tiles, else PNG or PPM by `path`'s extension.
+    /// Mixing (EXR tiles into a `.png`, or the reverse) is an error naming `path`.
+    pub fn save(&self, path: &Path) -> Result<(), OutputError> {
+        let exr = crate::output::is_exr(path);
+        if exr != self.hdr {
+            return Err(OutputError::Io {
+                file: path.to_path_buf(),
+                source: std::io::Error::other(if self.hdr {
+                    "the tiles are linear EXR: merge them into a .exr file"
+                } else {
+                    "the tiles are 8-bit PNG: merge them into a .png or .ppm file"
+                }),
+            });
+        }
+        if self.hdr {
+            let film = crate::film::Film {
+                width: self.width,
+                height: self.height,
+                pixels: bytemuck::cast_slice::<u8, [f32; 3]>(&self.rgb)
+                    .iter()
+                    .map(|&p| p.into())
+                    .collect(),
+            };
+            crate::output::write_exr(path, &film)
+        } else {
+            crate::output::write_rgb8(
+                path,
+                (self.width, self.height),
+                &ImageMeta::default(),
+                &self.rgb,
+            )
+        }
+    }
 }
 
 /// A tile that cannot be read, or tiles that do not make one image. Each names the file at fault.
@@ -231,9 +272,29 @@ fn write_png_with_text(
     crate::output::write_rgb8(path, size, &meta, rgb)
 }
 
-/// Reads a tile file and checks it against itself: its chunks parse, its bounds lie inside its
-/// image, and its pixels are the bounds' size.
+/// Writes an EXR tile: the region's linear film with `info` as string attributes.
+pub fn write_tile_exr(
+    path: &Path,
+    info: &TileInfo,
+    film: &crate::film::Film,
+) -> Result<(), OutputError> {
+    let meta = ImageMeta {
+        text: info
+            .text_chunks()
+            .iter()
+            .map(|(k, v)| ((*k).to_owned(), v.clone()))
+            .collect(),
+    };
+    crate::output::write_exr_with(path, film, &meta)
+}
+
+/// Reads a tile file (PNG with text chunks, or EXR with string attributes) and checks it against
+/// itself: its metadata parses, its bounds lie inside its image, and its pixels are the bounds'
+/// size.
 pub fn read_tile(path: &Path) -> Result<Tile, TileError> {
+    if crate::output::is_exr(path) {
+        return read_exr_tile(path);
+    }
     let unreadable = |message: String| TileError::Unreadable {
         file: path.to_path_buf(),
         message,
@@ -263,6 +324,26 @@ pub fn read_tile(path: &Path) -> Result<Tile, TileError> {
         .iter()
         .map(|c| (c.keyword.as_str(), c.text.as_str()))
         .collect();
+    let info = tile_info(path, &text, (frame.width, frame.height))?;
+    Ok(Tile {
+        file: path.to_path_buf(),
+        info,
+        rgb,
+        hdr: false,
+    })
+}
+
+/// A tile's information from its metadata (`text`: PNG text chunks or EXR string attributes),
+/// checked against itself and against its pixels' `size`.
+fn tile_info(
+    path: &Path,
+    text: &HashMap<&str, &str>,
+    size: (u32, u32),
+) -> Result<TileInfo, TileError> {
+    let not_a_tile = |message: String| TileError::NotATile {
+        file: path.to_path_buf(),
+        message,
+    };
     let chunk = |key: &str| {
         text.get(key)
             .copied()
@@ -280,23 +361,40 @@ pub fn read_tile(path: &Path) -> Result<Tile, TileError> {
     bounds
         .check_inside(w, h, BOUNDS_KEY)
         .map_err(|e| not_a_tile(e.to_string()))?;
-    if (frame.width, frame.height) != (bounds.width(), bounds.height()) {
+    if size != (bounds.width(), bounds.height()) {
         return Err(not_a_tile(format!(
             "its pixels are {}x{} but its bounds {bounds} are {}x{}",
-            frame.width,
-            frame.height,
+            size.0,
+            size.1,
             bounds.width(),
             bounds.height()
         )));
     }
+    Ok(TileInfo {
+        bounds,
+        image: (w, h),
+        fingerprint,
+    })
+}
+
+/// [`read_tile`] for an EXR tile.
+fn read_exr_tile(path: &Path) -> Result<Tile, TileError> {
+    let image = crate::output::read_exr(path).map_err(|message| TileError::Unreadable {
+        file: path.to_path_buf(),
+        message,
+    })?;
+    let text: HashMap<&str, &str> = image
+        .text
+        .iter()
+        .map(|(k, v)| (k.as_str(), v.as_str()))
+        .collect();
+    let info = tile_info(path, &text, image.size)?;
+    let pixels: Vec<[f32; 3]> = image.pixels.iter().map(|p| p.to_array()).collect();
     Ok(Tile {
         file: path.to_path_buf(),
-        info: TileInfo {
-            bounds,
-            image: (w, h),
-            fingerprint,
-        },
-        rgb,
+        info,
+        rgb: bytemuck::cast_slice(&pixels).to_vec(),
+        hdr: true,
     })
 }
 
@@ -364,16 +462,34 @@ pub fn merge_tiles(tiles: &[Tile]) -> Result<Merged, TileError> {
             height,
         });
     }
-    let mut rgb = vec![0u8; width as usize * height as usize * 3];
+    let hdr = reference.hdr;
+    if let Some(t) = tiles.iter().find(|t| t.hdr != hdr) {
+        return Err(TileError::Foreign {
+            file: t.file.clone(),
+            message: format!(
+                "it is {} but {} is {}",
+                if t.hdr { "EXR" } else { "PNG" },
+                reference.file.display(),
+                if hdr { "EXR" } else { "PNG" }
+            ),
+        });
+    }
+    let bpp = if hdr { 12 } else { 3 };
+    let mut rgb = vec![0u8; width as usize * height as usize * bpp];
     for t in tiles {
         let b = t.info.bounds;
-        let row = b.width() as usize * 3;
+        let row = b.width() as usize * bpp;
         for (j, src) in (b.y0..b.y1).zip(t.rgb.chunks_exact(row)) {
-            let start = (j as usize * width as usize + b.x0 as usize) * 3;
+            let start = (j as usize * width as usize + b.x0 as usize) * bpp;
             rgb[start..start + row].copy_from_slice(src);
         }
     }
-    Ok(Merged { width, height, rgb })
+    Ok(Merged {
+        width,
+        height,
+        rgb,
+        hdr,
+    })
 }
 
 /// The first run of uncovered columns (top to bottom, left to right), extended over the rows below
@@ -432,6 +548,7 @@ mod tests {
                 fingerprint: Fingerprint(fingerprint.into()),
             },
             rgb,
+            hdr: false,
         }
     }
 
@@ -526,6 +643,55 @@ mod tests {
         write_png_with_text(&path, (3, 3), &[0; 27], &info.text_chunks()).unwrap();
         let e = read_tile(&path).unwrap_err().to_string();
         assert!(e.contains("3x3") && e.contains("3x2"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn exr_tiles_round_trip_and_merge_into_the_linear_film() {
+        let dir = std::env::temp_dir().join(format!("wf-tile-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // A 5 × 3 linear image with values beyond 1 (HDR), split into two bands.
+        let whole: Vec<glam::Vec3> = (0..15)
+            .map(|i| glam::Vec3::new(i as f32 * 0.37, -(i as f32), 1e3 + i as f32))
+            .collect();
+        let band = |y0: u32, y1: u32| crate::film::Film {
+            width: 5,
+            height: y1 - y0,
+            pixels: whole[(y0 * 5) as usize..(y1 * 5) as usize].to_vec(),
+        };
+        let mut tiles = vec![];
+        for (name, y0, y1) in [("a.exr", 0, 2), ("b.exr", 2, 3)] {
+            let info = TileInfo {
+                bounds: Region {
+                    x0: 0,
+                    x1: 5,
+                    y0,
+                    y1,
+                },
+                image: (5, 3),
+                fingerprint: Fingerprint("f00d".into()),
+            };
+            let path = dir.join(name);
+            write_tile_exr(&path, &info, &band(y0, y1)).unwrap();
+            let back = read_tile(&path).unwrap();
+            assert!(back.hdr);
+            assert_eq!(back.info, info);
+            tiles.push(back);
+        }
+        let merged = merge_tiles(&tiles).unwrap();
+        let out = dir.join("whole.exr");
+        merged.save(&out).unwrap();
+        let image = crate::output::read_exr(&out).unwrap();
+        assert_eq!(image.size, (5, 3));
+        assert!(
+            image.pixels == whole,
+            "merged EXR differs from the linear film"
+        );
+        // EXR tiles into a PNG is an error naming the output; nothing is written.
+        let png = dir.join("whole.png");
+        let e = crate::error::chain(&merged.save(&png).unwrap_err());
+        assert!(e.contains("whole.png") && e.contains(".exr"), "{e}");
+        assert!(!png.exists());
         let _ = std::fs::remove_dir_all(&dir);
     }
 

@@ -7,16 +7,15 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use wavefront::film::save_rgb8;
 use wavefront::tile::{merge_tiles, read_tile};
 
 /// Arguments of `merge`.
 #[derive(Args, Debug)]
 pub struct MergeArgs {
-    /// Tile PNGs written by `render --tile` or `render --pixel-bounds`.
+    /// Tiles written by `render --tile` or `render --pixel-bounds` (PNG, or EXR for linear HDR).
     #[arg(required = true)]
     pub tiles: Vec<PathBuf>,
-    /// The merged image (.png or .ppm).
+    /// The merged image (.png or .ppm from PNG tiles, .exr from EXR tiles).
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -29,10 +28,5 @@ pub fn run(args: &MergeArgs) -> Result<()> {
         .map(|t| read_tile(t))
         .collect::<Result<Vec<_>, _>>()?;
     let merged = merge_tiles(&tiles)?;
-    Ok(save_rgb8(
-        &args.output,
-        merged.width,
-        merged.height,
-        &merged.rgb,
-    )?)
+    Ok(merged.save(&args.output)?)
 }

@@ -139,7 +139,17 @@ pub fn save_part(
         .output
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    let is_exr = wavefront::output::is_exr(&job.output);
     match region {
+        Some(bounds) if is_exr => {
+            let info = TileInfo {
+                bounds,
+                image: (image.width, image.height),
+                fingerprint: Fingerprint::of(&job.scene, sources, job.frame),
+            };
+            wavefront::tile::write_tile_exr(&job.output, &info, film)
+                .with_context(|| format!("cannot write tile {}", job.output.display()))
+        }
         Some(bounds) if is_png => {
             let info = TileInfo {
                 bounds,

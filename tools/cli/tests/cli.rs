@@ -388,3 +388,31 @@ fn on_a_terminal_a_render_ends_with_one_summary_line_and_quiet_silences_it() {
     assert!(!quiet.contains("wrote"), "--quiet: {quiet:?}");
     assert!(dir.path().join("b.png").exists());
 }
+
+#[test]
+fn exr_tiles_merge_into_the_single_linear_render() {
+    let dir = Scratch::new("exr-tiles");
+    for args in [
+        vec!["render", "--samples", "2", "-o", "full.exr"],
+        vec!["render", "--samples", "2", "--tile", "0/3", "-o", "t0.exr"],
+        vec!["render", "--samples", "2", "--tile", "1/3", "-o", "t1.exr"],
+        vec!["render", "--samples", "2", "--tile", "2/3", "-o", "t2.exr"],
+        vec!["merge", "t2.exr", "t0.exr", "t1.exr", "-o", "merged.exr"],
+    ] {
+        let o = dir.run(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+    let full = wavefront::output::read_exr(&dir.path().join("full.exr")).unwrap();
+    let merged = wavefront::output::read_exr(&dir.path().join("merged.exr")).unwrap();
+    assert_eq!(full.size, (512, 512));
+    assert!(
+        merged.pixels == full.pixels,
+        "merged EXR tiles differ from the single render"
+    );
+    // EXR tiles cannot become a PNG: a clean error, no file.
+    let line = assert_clean_failure(
+        &dir,
+        &["merge", "t0.exr", "t1.exr", "t2.exr", "-o", "m.png"],
+    );
+    assert!(line.contains("m.png") && line.contains(".exr"), "{line}");
+}
