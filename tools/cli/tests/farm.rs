@@ -97,36 +97,9 @@ impl Drop for Scratch {
 
 const SPHERES: &str = include_str!("../../../scenes/spheres.toml");
 
-/// Scene A's explicit `[camera]` table as shipped.
-const CAMERA: &str = "[camera]
-eye = [0.0, 0.0, 0.0]
-u = [1.0, 0.0, 0.0]
-v = [0.0, 1.0, 0.0]
-w = [0.0, 0.0, 1.0]
-window = { l = -0.1, r = 0.1, b = -0.1, t = 0.1 }
-distance = 0.1";
-
 /// Scene A at 96 × 64 with a camera path over frames 0..=3.
 fn path_scene() -> String {
-    assert!(SPHERES.contains(CAMERA), "scenes/spheres.toml changed");
-    SPHERES
-        .replace(
-            CAMERA,
-            "[[camera.key]]
-frame = 0
-eye = [0.0, 0.0, 0.0]
-look_at = [0.0, 0.0, -7.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 90.0
-
-[[camera.key]]
-frame = 3
-eye = [2.0, 1.0, 1.0]
-look_at = [0.0, -0.5, -7.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 60.0",
-        )
-        .replace("width = 512\nheight = 512", "width = 96\nheight = 64")
+    wavefront_kit::testkit::spheres_camera_path_toml(0.0, (96, 64))
 }
 
 #[test]

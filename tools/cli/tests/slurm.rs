@@ -173,33 +173,7 @@ fn job_id(stdout: &str, label: &str) -> String {
 
 /// Scene A at 160 × 120 with a two-key camera path over frames 0..=3.
 fn path_scene() -> String {
-    let spheres = std::fs::read_to_string(project_root().join("scenes/spheres.toml")).unwrap();
-    let camera = "[camera]
-eye = [0.0, 0.0, 0.0]
-u = [1.0, 0.0, 0.0]
-v = [0.0, 1.0, 0.0]
-w = [0.0, 0.0, 1.0]
-window = { l = -0.1, r = 0.1, b = -0.1, t = 0.1 }
-distance = 0.1";
-    assert!(spheres.contains(camera), "scenes/spheres.toml changed");
-    spheres
-        .replace(
-            camera,
-            "[[camera.key]]
-frame = 0
-eye = [0.0, 0.0, 0.0]
-look_at = [0.0, 0.0, -7.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 90.0
-
-[[camera.key]]
-frame = 3
-eye = [2.0, 1.0, 1.0]
-look_at = [0.0, -0.5, -7.0]
-up = [0.1, 1.0, 0.0]
-fov_y = 60.0",
-        )
-        .replace("width = 512\nheight = 512", "width = 160\nheight = 120")
+    wavefront_kit::testkit::spheres_camera_path_toml(0.1, (160, 120))
 }
 
 #[test]

@@ -251,3 +251,38 @@ pub fn mutate_from(
     }
     t
 }
+
+/// Scene A (`scenes/spheres.toml`) at `width × height` with its camera replaced by a two-key
+/// look-at path: frame 0 at the origin looking down −z, frame 3 at (2, 1, 1) with `up` tilted by
+/// `tilt` in x — the render-farm tests' frame range.
+pub fn spheres_camera_path_toml(tilt: f64, (width, height): (u32, u32)) -> String {
+    let spheres = std::fs::read_to_string(project_root().join("scenes/spheres.toml"))
+        .expect("scenes/spheres.toml is readable");
+    let camera = "[camera]
+eye = [0.0, 0.0, 0.0]
+u = [1.0, 0.0, 0.0]
+v = [0.0, 1.0, 0.0]
+w = [0.0, 0.0, 1.0]
+window = { l = -0.1, r = 0.1, b = -0.1, t = 0.1 }
+distance = 0.1";
+    assert!(spheres.contains(camera), "scenes/spheres.toml changed");
+    let path = format!(
+        "[[camera.key]]
+frame = 0
+eye = [0.0, 0.0, 0.0]
+look_at = [0.0, 0.0, -7.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 90.0
+
+[[camera.key]]
+frame = 3
+eye = [2.0, 1.0, 1.0]
+look_at = [0.0, -0.5, -7.0]
+up = [{tilt:?}, 1.0, 0.0]
+fov_y = 60.0"
+    );
+    spheres.replace(camera, &path).replace(
+        "width = 512\nheight = 512",
+        &format!("width = {width}\nheight = {height}"),
+    )
+}
