@@ -258,7 +258,7 @@ mod tests {
         std::fs::create_dir_all(&dir).unwrap();
         let p = dir.join("x.jpg");
         let e = Film::new(1, 1).save(&p, 2.2).unwrap_err();
-        assert!(e.to_string().contains(".png or .ppm"));
+        assert!(e.to_string().contains(".png, .ppm or .exr"));
         assert!(!p.exists());
         let p = dir.join("x.ppm");
         Film::new(2, 1).save(&p, 2.2).unwrap();

@@ -131,7 +131,7 @@ struct SceneArgs {
 struct RenderArgs {
     #[command(flatten)]
     scene: SceneArgs,
-    /// Output image (.png or .ppm).
+    /// Output image (.png, .ppm or .exr).
     #[arg(short, long, default_value = "out.png")]
     output: PathBuf,
     /// Worker threads (default: all cores).
