@@ -31,6 +31,9 @@ const CHUNK_BYTES: usize = 1 << 20;
 /// positions and triangles as [`ObjMesh::read`], which it falls back to for uncommon files.
 pub fn read_bytes(path: &Path, bytes: &[u8]) -> Result<ObjMesh, MeshError> {
     match parse(bytes) {
+        // The update keeps this literal valid when `ObjMesh` gains fields (normals, materials),
+        // which uncommon files get through tobj.
+        #[allow(clippy::needless_update)]
         Some((positions, indices)) => Ok(ObjMesh {
             path: path.to_path_buf(),
             positions,
@@ -40,6 +43,9 @@ pub fn read_bytes(path: &Path, bytes: &[u8]) -> Result<ObjMesh, MeshError> {
         None => ObjMesh::read(path),
     }
 }
+
+/// Positions (f64) and triangles, as [`ObjMesh`] holds them.
+pub type Parsed = (Vec<[f64; 3]>, Vec<[u32; 3]>);
 
 /// One face corner: `(v, vt, vn)` resolved to 0-based indices (wrapped as tobj wraps them).
 type Corner = (u64, u64, u64);
@@ -55,7 +61,7 @@ struct Chunk {
 }
 
 /// The fast path: `None` when the file needs tobj.
-pub fn parse(bytes: &[u8]) -> Option<(Vec<[f64; 3]>, Vec<[u32; 3]>)> {
+pub fn parse(bytes: &[u8]) -> Option<Parsed> {
     // Continuation lines and the one whitespace `split_whitespace` knows but
     // `split_ascii_whitespace` does not (vertical tab) are tobj's business.
     if !bytes.is_ascii() || bytes.iter().any(|&b| b == b'\\' || b == 0x0b) {
@@ -194,15 +200,13 @@ fn parse_chunk(text: &str, (mut nv, mut nvt): (usize, usize)) -> Option<Chunk> {
 
 /// tobj's per-model renumbering: each distinct corner of a model becomes one vertex, in order of
 /// first use. `None` when an index is out of range (tobj reports it).
-fn renumber(
-    chunks: &[Chunk],
-    all: &[[f64; 3]],
-    texcoords: usize,
-) -> Option<(Vec<[f64; 3]>, Vec<[u32; 3]>)> {
+fn renumber(chunks: &[Chunk], all: &[[f64; 3]], texcoords: usize) -> Option<Parsed> {
     let triangles: usize = chunks.iter().map(|c| c.corners.len() / 3).sum();
-    let plain = chunks
-        .iter()
-        .all(|c| c.corners.iter().all(|&(_, t, n)| t == MISSING && n == MISSING));
+    let plain = chunks.iter().all(|c| {
+        c.corners
+            .iter()
+            .all(|&(_, t, n)| t == MISSING && n == MISSING)
+    });
     let mut positions = Vec::with_capacity(all.len());
     let mut indices: Vec<[u32; 3]> = Vec::with_capacity(triangles);
     // Plain corners: a vertex's new index per model, stamped with the model number.
@@ -232,7 +236,8 @@ fn renumber(
             }
             let mut out = [0u32; 3];
             for (o, &(v, vt, vn)) in out.iter_mut().zip(tri) {
-                if v >= all.len() as u64 || (texcoords > 0 && vt != MISSING && vt >= texcoords as u64)
+                if v >= all.len() as u64
+                    || (texcoords > 0 && vt != MISSING && vt >= texcoords as u64)
                 {
                     return None;
                 }
@@ -323,8 +328,15 @@ mod tests {
         let mut text = String::new();
         for i in 0..60_000 {
             let x = i as f64 * 0.25;
-            text.push_str(&format!("v {x} {} -1.5\nv {x} 1 2\nv 0.125 {x} 3\n", x * 0.5));
-            text.push_str(if i % 3 == 0 { "f -3 -2 -1\n" } else { "f -1 -2 -3 1\n" });
+            text.push_str(&format!(
+                "v {x} {} -1.5\nv {x} 1 2\nv 0.125 {x} 3\n",
+                x * 0.5
+            ));
+            text.push_str(if i % 3 == 0 {
+                "f -3 -2 -1\n"
+            } else {
+                "f -1 -2 -3 1\n"
+            });
             if i % 7919 == 0 {
                 text.push_str("g part\n");
             }
@@ -349,7 +361,10 @@ mod tests {
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/2 2/1 3/1\n",
         ] {
-            assert!(parse(text.as_bytes()).is_none(), "fast path taken for\n{text}");
+            assert!(
+                parse(text.as_bytes()).is_none(),
+                "fast path taken for\n{text}"
+            );
         }
     }
 }

@@ -93,9 +93,9 @@ fn find_split(bx: &Aabb, bounds: &[Aabb]) -> Option<(f32, usize, f32)> {
         .map(|chunk| {
             let mut b = Bins::zero();
             for t in chunk {
-                for a in 0..3 {
-                    b.start[a][bin(t.0[a], bx.0[a], scale[a])] += 1;
-                    b.end[a][bin(t.1[a], bx.0[a], scale[a])] += 1;
+                for (a, &sc) in scale.iter().enumerate() {
+                    b.start[a][bin(t.0[a], bx.0[a], sc)] += 1;
+                    b.end[a][bin(t.1[a], bx.0[a], sc)] += 1;
                 }
             }
             b
