@@ -34,11 +34,13 @@
 #![deny(unsafe_code)]
 
 pub mod accel;
+pub mod cache;
 pub mod error;
 pub mod film;
 pub mod frame;
 pub mod geometry;
 pub mod mesh;
+pub mod obj_fast;
 pub mod output;
 pub mod queue;
 pub mod region;

@@ -15,6 +15,9 @@ use crate::mesh::{NO_MATERIAL, ObjMesh, ObjRead};
 use crate::queue::PrimId;
 use crate::scene::{Material, Normals, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
 
+mod cached;
+pub use cached::{CacheStatus, Setup};
+
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum PrimKind {
@@ -133,14 +136,8 @@ impl World {
 
     /// [`World::load`], also saying how long loading and building took.
     pub fn load_timed(scene: &Scene) -> Result<(World, SetupTimes), LoadError> {
-        let frame = RenderFrame::at(scene.camera.eye);
-        let (triangles, times) = if scene.meshes.is_empty() {
-            (None, SetupTimes::default())
-        } else {
-            let (t, times) = load_triangles(scene, &frame)?;
-            (Some(t), times)
-        };
-        Ok((World::analytic(scene, frame, triangles), times))
+        let (world, setup) = World::load_cached(scene, None)?;
+        Ok((world, setup.times))
     }
 
     /// The scene's analytic primitives, materials and lights in `frame`, with `triangles`.

@@ -83,3 +83,19 @@ fn large_meshes_build_the_same_tree_on_1_2_and_4_threads() {
         }
     }
 }
+
+#[test]
+fn binned_upper_levels_cost_within_five_percent_of_the_exact_sweep() {
+    let mut meshes = vec![("soup", soup(40_000))];
+    if let Some(path) = wavefront_kit::testkit::sibenik_mesh() {
+        meshes.push(("sibenik", TriangleMesh::load_obj(&path).unwrap()));
+    }
+    for (name, mesh) in meshes {
+        let binned = KdTree::build(&mesh, BuildMethod::Sah);
+        let exact = KdTree::build_sah_exact(&mesh);
+        binned.validate(&mesh).expect("valid binned tree");
+        assert!(binned != exact, "{name}: the binned path was not taken");
+        let (b, e) = (binned.stats(&mesh).sah_cost, exact.stats(&mesh).sah_cost);
+        assert!(b <= 1.05 * e, "{name}: binned SAH cost {b} vs exact {e}");
+    }
+}

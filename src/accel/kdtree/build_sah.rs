@@ -24,16 +24,19 @@ use super::{COST_INTERSECT, COST_TRAVERSAL, MAX_BUILD_DEPTH, split_box, tri_vert
 use crate::mesh::TriangleMesh;
 
 /// Cost factor applied when one side of a split is empty (20 % empty-space bonus).
-const EMPTY_FACTOR: f32 = 0.8;
+pub(crate) const EMPTY_FACTOR: f32 = 0.8;
 /// Smallest empty slab (as a fraction of the node's extent on the split axis) that earns the
 /// bonus, so that thin slivers of empty space are not cut off for nothing.
-const EMPTY_MIN_FRACTION: f32 = 0.02;
+pub(crate) const EMPTY_MIN_FRACTION: f32 = 0.02;
 /// Nodes with more triangles than this build their children in parallel.
 const PARALLEL_MIN: usize = 4096;
 /// Nodes with at most this many triangles are built by [`node_small`]: events are regenerated
 /// and sorted per node in one reused scratch buffer instead of being filtered and merged, and
 /// children's triangles live on the stack, so a small subtree makes one heap allocation.
 const SMALL: usize = 48;
+
+/// The builder's own constants, for [`super::builder_settings`].
+pub(crate) const SETTINGS: &str = "empty 0.8/0.02 small 48 exact-sweep";
 
 const END: u64 = 0;
 const PLANAR: u64 = 1;
@@ -84,7 +87,7 @@ pub(crate) struct Flat {
 
 impl Flat {
     /// Appends a subtree built separately, shifting its child and triangle offsets.
-    fn append(&mut self, sub: Flat) {
+    pub(crate) fn append(&mut self, sub: Flat) {
         let nb = self.nodes.len() as u32;
         let tb = self.tris.len() as u32;
         self.nodes.extend(sub.nodes.into_iter().map(|n| {
@@ -97,7 +100,8 @@ impl Flat {
         self.tris.extend_from_slice(&sub.tris);
     }
 
-    fn leaf(&mut self, ids: &[u32]) {
+    /// Appends a leaf holding `ids` (sorted).
+    pub(crate) fn leaf(&mut self, ids: &[u32]) {
         let start = self.tris.len();
         self.nodes
             .push(KdNode::leaf(start as u32, ids.len() as u32));
@@ -114,26 +118,57 @@ struct Work {
     events: [Vec<u64>; 3],
 }
 
-/// Builds the SAH tree over `tris` (non-degenerate triangle indices) in box `root`.
+/// Bounds of triangle `t` (with `-0.0` normalised).
+#[inline]
+pub(crate) fn tri_bounds(mesh: &TriangleMesh, t: u32) -> Aabb {
+    let v = tri_verts(mesh, t);
+    let mut b = (v[0], v[0]);
+    for p in &v[1..] {
+        for (k, &c) in p.iter().enumerate() {
+            b.0[k] = b.0[k].min(c);
+            b.1[k] = b.1[k].max(c);
+        }
+    }
+    norm(b)
+}
+
+/// Depth cap of a tree over `n` triangles: `8 + 1.3·log2 n` (pbrt), at most [`MAX_BUILD_DEPTH`].
+pub(crate) fn max_depth(n: usize) -> usize {
+    let n = n.max(1) as f32;
+    ((8.0 + 1.3 * n.log2()) as usize).min(MAX_BUILD_DEPTH)
+}
+
+/// Builds the SAH tree over `tris` (non-degenerate triangle indices) in box `root` with the exact
+/// sweep at every level.
 pub(crate) fn build(mesh: &TriangleMesh, root: Aabb, tris: Vec<u32>) -> Flat {
     assert!(
         tris.len() < 1 << 30,
         "too many triangles for the SAH builder"
     );
-    let bounds: Vec<Aabb> = tris
-        .iter()
-        .map(|&t| {
-            let v = tri_verts(mesh, t);
-            let mut b = (v[0], v[0]);
-            for p in &v[1..] {
-                for (k, &c) in p.iter().enumerate() {
-                    b.0[k] = b.0[k].min(c);
-                    b.1[k] = b.1[k].max(c);
-                }
-            }
-            norm(b)
-        })
-        .collect();
+    let bounds: Vec<Aabb> = tris.iter().map(|&t| tri_bounds(mesh, t)).collect();
+    let max_depth = max_depth(tris.len());
+    let mut out = Flat::default();
+    subtree(mesh, root, tris, bounds, 0, max_depth, &mut out);
+    out
+}
+
+/// Builds the exact-sweep subtree over triangles `ids` with (clipped) `bounds` in box `bx` at
+/// `depth`, appending it to `out` in pre-order: sorts this node's events once, then filters and
+/// merges them on the way down.
+pub(crate) fn subtree(
+    mesh: &TriangleMesh,
+    bx: Aabb,
+    ids: Vec<u32>,
+    bounds: Vec<Aabb>,
+    depth: usize,
+    max_depth: usize,
+    out: &mut Flat,
+) {
+    if ids.len() <= SMALL {
+        let mut ev = Vec::with_capacity(6 * SMALL);
+        node_small(bx, &ids, &bounds, depth, max_depth, out, &mut ev);
+        return;
+    }
     let make = |axis: usize| {
         let mut ev = Vec::with_capacity(2 * bounds.len());
         for (i, b) in bounds.iter().enumerate() {
@@ -144,15 +179,11 @@ pub(crate) fn build(mesh: &TriangleMesh, root: Aabb, tris: Vec<u32>) -> Flat {
     };
     let (e0, (e1, e2)) = rayon::join(|| make(0), || rayon::join(|| make(1), || make(2)));
     let work = Work {
-        ids: tris,
+        ids,
         bounds,
         events: [e0, e1, e2],
     };
-    let n = work.ids.len().max(1) as f32;
-    let max_depth = ((8.0 + 1.3 * n.log2()) as usize).min(MAX_BUILD_DEPTH);
-    let mut out = Flat::default();
-    node(mesh, root, work, 0, max_depth, &mut out);
-    out
+    node(mesh, bx, work, depth, max_depth, out);
 }
 
 /// Best split found by the sweep.
@@ -305,7 +336,7 @@ fn classify(b: &Aabb, split: &Split) -> u8 {
 /// Bounds of triangle `id` clipped to child box `cb` (conservative fallback: its old bounds
 /// intersected with the box).
 #[inline]
-fn clip(mesh: &TriangleMesh, id: u32, old: &Aabb, cb: &Aabb) -> Aabb {
+pub(crate) fn clip(mesh: &TriangleMesh, id: u32, old: &Aabb, cb: &Aabb) -> Aabb {
     norm(clip_bounds(&tri_verts(mesh, id), cb).unwrap_or_else(|| clip_to_box(old, cb)))
 }
 

@@ -1,7 +1,8 @@
 //! kD tree over a [`TriangleMesh`]: the accelerator of the kD-intersect stage.
 //!
 //! Split like Embree/obvhs: [`node`] (8-byte node layout), `build_midpoint` (the assignment's
-//! longest-axis midpoint rule), `build_sah` (Wald & Havran 2006, O(N log N), the default),
+//! longest-axis midpoint rule), `build_binned` (parallel binned SAH for the upper levels of the
+//! default SAH tree) over `build_sah` (Wald & Havran 2006, O(N log N), the exact sweep below),
 //! `traverse` ([`KdAccel`]: closest and occluded queries), `simd` (the SSE2 lanes the packet
 //! traversal uses, the only `unsafe` code of the crate's kernels), `text` (the SPEC §6 text
 //! format), `validate` and `stats`. The builders read mesh vertices and triangle indices and
@@ -15,6 +16,7 @@
 //! hit. A [`KdTree`] holds no mesh data; [`KdAccel`] adds a copy of the triangle vertices in
 //! leaf order, so traversal touches one contiguous array.
 
+mod build_binned;
 mod build_midpoint;
 mod build_sah;
 pub mod node;
@@ -52,6 +54,19 @@ pub enum BuildMethod {
     /// Surface-area heuristic (Wald & Havran 2006); the default.
     #[default]
     Sah,
+}
+
+/// Everything that decides what [`KdTree::build`] makes with `method`, as text: part of the tree
+/// cache's key ([`crate::cache::CacheKey`]), so changing a builder constant invalidates entries.
+pub fn builder_settings(method: BuildMethod) -> String {
+    match method {
+        BuildMethod::Midpoint => format!("midpoint v1 depth {MAX_BUILD_DEPTH}"),
+        BuildMethod::Sah => format!(
+            "sah v1 depth {MAX_BUILD_DEPTH} traversal {COST_TRAVERSAL} intersect {COST_INTERSECT} {} {}",
+            build_sah::SETTINGS,
+            build_binned::SETTINGS
+        ),
+    }
 }
 
 /// Closest hit of a ray: distance `t` (in units of the direction's length) and triangle index.
@@ -105,7 +120,7 @@ impl KdTree {
                 KdTree::from_build(&build_midpoint::build(mesh, root, tris), root, mesh.len())
             }
             BuildMethod::Sah => {
-                let flat = build_sah::build(mesh, root, tris);
+                let flat = build_binned::build(mesh, root, tris);
                 KdTree {
                     nodes: flat.nodes,
                     tri_indices: flat.tris,
@@ -113,6 +128,24 @@ impl KdTree {
                     triangle_count: mesh.len(),
                 }
             }
+        }
+    }
+
+    /// The SAH tree with the exact event sweep at every level (Wald & Havran 2006), no binning:
+    /// the reference [`BuildMethod::Sah`]'s binned upper levels are measured against.
+    pub fn build_sah_exact(mesh: &TriangleMesh) -> KdTree {
+        let (lo, hi) = mesh.bounds();
+        let root: Aabb = (lo.to_array(), hi.to_array());
+        let tris: Vec<u32> = (0..mesh.len())
+            .filter(|&k| !mesh.is_degenerate(k))
+            .map(|k| k as u32)
+            .collect();
+        let flat = build_sah::build(mesh, root, tris);
+        KdTree {
+            nodes: flat.nodes,
+            tri_indices: flat.tris,
+            root,
+            triangle_count: mesh.len(),
         }
     }
 

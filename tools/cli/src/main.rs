@@ -55,6 +55,30 @@ enum Command {
     Farm(farm::FarmCommand),
 }
 
+/// Where the tree cache lives (render, bench, kdtree build).
+#[derive(Args, Clone, Default)]
+struct CacheArgs {
+    /// Tree cache folder (default: $XDG_CACHE_HOME/wavefront or ~/.cache/wavefront).
+    #[arg(long, value_name = "DIR", conflicts_with = "no_cache")]
+    cache: Option<PathBuf>,
+    /// Neither read nor write the tree cache.
+    #[arg(long)]
+    no_cache: bool,
+}
+
+impl CacheArgs {
+    /// The cache to use, if any (none when no folder is known).
+    fn cache(&self) -> Option<wavefront::cache::TreeCache> {
+        if self.no_cache {
+            return None;
+        }
+        self.cache
+            .clone()
+            .or_else(wavefront::cache::TreeCache::default_dir)
+            .map(wavefront::cache::TreeCache::new)
+    }
+}
+
 #[derive(Args)]
 struct BenchArgs {
     /// Scene file or built-in name.
@@ -75,6 +99,8 @@ struct BenchArgs {
     /// Print one JSON object per line instead of tables.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    cache: CacheArgs,
 }
 
 #[derive(Args)]
@@ -148,6 +174,8 @@ struct RenderArgs {
     wave_samples: usize,
     #[command(flatten)]
     part: plan::PartArgs,
+    #[command(flatten)]
+    cache: CacheArgs,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -168,6 +196,16 @@ enum KdtreeCommand {
         /// Output tree file.
         #[arg(short, long)]
         output: PathBuf,
+        /// Worker threads of the build (default: all cores).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// Print one JSON object (triangles, threads, load_seconds, build_seconds, ...) instead
+        /// of text.
+        #[arg(long)]
+        json: bool,
+        /// The tree cache the built tree is also stored in (never read: build always builds).
+        #[command(flatten)]
+        cache: CacheArgs,
     },
     /// Validate a tree file against its mesh and print its statistics.
     Check {
@@ -286,19 +324,26 @@ fn run_render(args: RenderArgs) -> Result<()> {
     pool.install(|| -> Result<()> {
         // One mesh load and one tree for every frame; each frame moves them to its own eye.
         let loading = feedback.spinner(format!("loading {}", scene.name));
-        let (world, setup) = World::load_timed(&scene)
+        let cache = args.cache.cache();
+        let (world, setup) = World::load_cached(&scene, cache.as_ref())
             .with_context(|| format!("cannot load scene {}", scene.name))?;
         loading.finish_and_clear();
+        for w in &setup.warnings {
+            eprintln!("warning: {w}");
+        }
+        let cache_status = setup.cache.clone();
+        let setup = setup.times;
         let world_seconds = start.elapsed().as_secs_f64();
         if args.stats
             && let Some(t) = world.triangles()
         {
             println!(
-                "mesh: {} triangles, loaded in {:.1} ms; tree ({:?}) in {:.1} ms",
+                "mesh: {} triangles, loaded in {:.1} ms; tree ({:?}) in {:.1} ms; cache: {:?}",
                 t.mesh().len(),
                 setup.load_seconds * 1e3,
                 t.source(),
-                setup.tree_seconds * 1e3
+                setup.tree_seconds * 1e3,
+                cache_status
             );
         }
         let sources = match jobs.region {
@@ -404,6 +449,7 @@ fn run_bench(args: &BenchArgs) -> Result<()> {
     let config = wavefront_kit::bench::BenchConfig {
         threads,
         repeat: args.repeat,
+        cache: args.cache.cache(),
     };
     let report = wavefront_kit::bench::run(&scene, config)
         .with_context(|| format!("cannot benchmark scene {}", scene.name))?;
@@ -463,33 +509,124 @@ fn load_mesh(path: &Path) -> Result<(TriangleMesh, RenderFrame)> {
     Ok((obj.to_frame(frame.origin)?, frame))
 }
 
+/// A rayon pool of `threads` threads (all cores when `None`); 0 is an error.
+fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
+    let mut builder = rayon::ThreadPoolBuilder::new();
+    if let Some(n) = threads {
+        if n == 0 {
+            bail!("invalid setting --threads: must be at least 1");
+        }
+        builder = builder.num_threads(n);
+    }
+    builder.build().context("cannot start the thread pool")
+}
+
+/// `kdtree build`: reads the mesh, builds in the frame centred on it, writes the tree file (world
+/// coordinates) and stores the mesh and tree in the cache (it never reads the cache).
+fn build_tree(
+    mesh: &Path,
+    method: BuildMethod,
+    output: &Path,
+    json: bool,
+    cache: &CacheArgs,
+) -> Result<()> {
+    if !mesh.exists() {
+        return Err(wavefront::scene::builtin::missing_mesh(mesh).into());
+    }
+    let start = Instant::now();
+    let bytes = std::fs::read(mesh).with_context(|| format!("cannot read {}", mesh.display()))?;
+    let obj = wavefront::obj_fast::read_bytes(mesh, &bytes)?;
+    let load = start.elapsed().as_secs_f64();
+    let frame = RenderFrame::centered_on(&obj);
+    let m = obj.to_frame(frame.origin)?;
+    let start = Instant::now();
+    let tree = KdTree::build(&m, method);
+    let build = start.elapsed().as_secs_f64();
+    let mut text = Vec::new();
+    tree.write_text_in(&mut text, &frame)
+        .context("cannot format the tree")?;
+    wavefront::film::write_atomically(output, &text)
+        .with_context(|| format!("cannot write {}", output.display()))?;
+    let stats = tree.stats(&m);
+    let mut stored = None;
+    if let Some(c) = cache.cache() {
+        let key = wavefront::cache::CacheKey::new(method, &[&bytes]);
+        let entry = wavefront::cache::CachedTree {
+            origin: frame.origin,
+            positions: obj.positions,
+            indices: obj.indices,
+            mesh_triangles: vec![m.len() as u64],
+            tree,
+        };
+        match c.store(key, &entry) {
+            Ok(path) => stored = Some(path),
+            Err(e) => eprintln!(
+                "warning: cannot write cache entry {}: {e}",
+                c.path_of(key).display()
+            ),
+        }
+    }
+    if json {
+        let method = match method {
+            BuildMethod::Sah => "sah",
+            BuildMethod::Midpoint => "midpoint",
+        };
+        println!(
+            "{{\"mesh\":{},\"method\":\"{method}\",\"triangles\":{},\"threads\":{},\"load_seconds\":{load:.6},\"build_seconds\":{build:.6},\"nodes\":{},\"leaves\":{},\"sah_cost\":{:.4},\"cache\":{}}}",
+            json_string(&mesh.display().to_string()),
+            m.len(),
+            rayon::current_num_threads(),
+            stats.nodes,
+            stats.leaves,
+            stats.sah_cost,
+            stored.map_or("null".to_string(), |p| json_string(
+                &p.display().to_string()
+            ))
+        );
+    } else {
+        println!(
+            "built {method:?} tree over {} triangles in {:.1} ms (OBJ read in {:.1} ms, {} thread(s))",
+            m.len(),
+            build * 1e3,
+            load * 1e3,
+            rayon::current_num_threads()
+        );
+        println!("{stats}");
+    }
+    Ok(())
+}
+
+/// `s` as a JSON string literal.
+fn json_string(s: &str) -> String {
+    let mut out = String::from("\"");
+    for c in s.chars() {
+        match c {
+            '"' => out.push_str("\\\""),
+            '\\' => out.push_str("\\\\"),
+            c if (c as u32) < 0x20 => out.push_str(&format!("\\u{:04x}", c as u32)),
+            c => out.push(c),
+        }
+    }
+    out.push('"');
+    out
+}
+
 fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
     match cmd {
         KdtreeCommand::Build {
             mesh,
             method,
             output,
+            threads,
+            json,
+            cache,
         } => {
-            let (m, frame) = load_mesh(&mesh)?;
-            let start = Instant::now();
+            let pool = thread_pool(threads)?;
             let method = match method {
                 Method::Sah => BuildMethod::Sah,
                 Method::Midpoint => BuildMethod::Midpoint,
             };
-            let tree = KdTree::build(&m, method);
-            let build = start.elapsed();
-            let mut text = Vec::new();
-            tree.write_text_in(&mut text, &frame)
-                .context("cannot format the tree")?;
-            wavefront::film::write_atomically(&output, &text)
-                .with_context(|| format!("cannot write {}", output.display()))?;
-            println!(
-                "built {method:?} tree over {} triangles in {:.1} ms",
-                m.len(),
-                build.as_secs_f64() * 1e3
-            );
-            println!("{}", tree.stats(&m));
-            Ok(())
+            pool.install(|| build_tree(&mesh, method, &output, json, &cache))
         }
         KdtreeCommand::Check { tree, mesh } => {
             let (m, frame) = load_mesh(&mesh)?;

@@ -394,12 +394,14 @@ impl Timing {
 }
 
 /// What [`run`] measures and how.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, PartialEq, Eq)]
 pub struct BenchConfig {
     /// Worker threads of the rayon pool everything runs on.
     pub threads: usize,
     /// Timed runs per kernel (best taken) and renders per frame figure (median taken).
     pub repeat: usize,
+    /// The tree cache the scene is loaded through (`None`: parse and build every time).
+    pub cache: Option<wavefront::cache::TreeCache>,
 }
 
 /// Everything `wavefront bench` prints.
@@ -648,13 +650,20 @@ pub fn run(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
 fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
     let threads = rayon::current_num_threads();
     let repeat = config.repeat.max(1);
-    let (world, setup) = World::load_timed(scene)?;
+    let (world, setup) = World::load_cached(scene, config.cache.as_ref())?;
     let mut report = Report {
         scene: scene.name.clone(),
         threads,
         repeat,
         ..Report::default()
     };
+    report.notes.extend(setup.warnings.iter().cloned());
+    if setup.cache == wavefront::world::CacheStatus::Hit {
+        report
+            .notes
+            .push("mesh and tree read from the tree cache (load_obj, tree)".into());
+    }
+    let setup = setup.times;
     let mut bench = StageBench::new(scene, &world);
     if bench.snapshot.waves > 1 {
         report.notes.push(format!(
@@ -1037,6 +1046,7 @@ mod tests {
             BenchConfig {
                 threads: 1,
                 repeat: 1,
+                cache: None,
             },
         )
         .unwrap();

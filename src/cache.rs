@@ -1,0 +1,439 @@
+//! The tree cache: one binary file per (OBJ bytes, builder, builder settings) holding the merged
+//! mesh (f64 positions, triangle indices, triangles per mesh) and its kD tree in the frame
+//! centred on the mesh, so a render with a warm cache skips parsing and building.
+//!
+//! Reads and writes `DIR/<key>.wfkd` (`DIR` is `$XDG_CACHE_HOME/wavefront`, else
+//! `~/.cache/wavefront`, or the CLI's `--cache DIR`). The file is a fixed [`Header`] followed by
+//! five arrays in `bytemuck` layouts (native endianness, which the magic word also checks): the
+//! triangle count of each mesh (`u64`), positions (`[f64; 3]`), triangles (`[u32; 3]`), nodes
+//! ([`KdNode`], 8 bytes) and the leaves' triangle list (`u32`). An entry is trusted only after its
+//! magic, version, key, sizes, checksum (XXH3-64 of the whole entry) and every index
+//! have been checked; [`TreeCache::load`] reports anything else as [`CacheError::Invalid`] and the
+//! caller rebuilds. Entries are written under a unique temporary name and renamed into place, so
+//! concurrent renders sharing one cache never read a half-written file.
+
+use std::io;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use bytemuck::{Pod, Zeroable};
+use glam::DVec3;
+use thiserror::Error;
+
+use crate::accel::kdtree::{BuildMethod, KdNode, KdTree, MAX_DEPTH};
+
+/// Format version: bump whenever the layout or anything that changes a cached result (the
+/// builders, the OBJ reader) changes.
+pub const CACHE_VERSION: u32 = 1;
+
+/// `b"WFKDTREE"` read as a native-endian `u64`: a file written on a machine of the other
+/// endianness fails this check.
+const MAGIC: [u8; 8] = *b"WFKDTREE";
+
+/// File name extension of cache entries.
+const EXTENSION: &str = "wfkd";
+
+/// Why a cache entry could not be used.
+#[derive(Debug, Error)]
+pub enum CacheError {
+    /// The entry exists but could not be read.
+    #[error("cannot read cache entry {path}")]
+    Read {
+        /// The entry.
+        path: PathBuf,
+        /// The I/O error.
+        #[source]
+        source: io::Error,
+    },
+    /// The entry is truncated, corrupt, from another version or for another key.
+    #[error("invalid cache entry {path}: {reason}")]
+    Invalid {
+        /// The entry.
+        path: PathBuf,
+        /// What check failed.
+        reason: String,
+    },
+}
+
+/// The key of an entry: a 128-bit XXH3 hash of the cache version, the crate version, the builder
+/// and its settings, and every mesh's OBJ bytes (length-prefixed, in scene order).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct CacheKey(pub u128);
+
+impl CacheKey {
+    /// The key of the tree `method` builds over the meshes whose OBJ files hold `sources`.
+    pub fn new(method: BuildMethod, sources: &[&[u8]]) -> CacheKey {
+        let mut h = xxhash_rust::xxh3::Xxh3::new();
+        h.update(b"wavefront tree cache\0");
+        h.update(&CACHE_VERSION.to_le_bytes());
+        h.update(env!("CARGO_PKG_VERSION").as_bytes());
+        h.update(crate::accel::kdtree::builder_settings(method).as_bytes());
+        h.update(&(sources.len() as u64).to_le_bytes());
+        for s in sources {
+            h.update(&(s.len() as u64).to_le_bytes());
+            h.update(s);
+        }
+        CacheKey(h.digest128())
+    }
+
+    /// The key as 32 hexadecimal digits (the entry's file stem).
+    pub fn hex(self) -> String {
+        format!("{:032x}", self.0)
+    }
+}
+
+/// What an entry holds: the merged mesh in world coordinates and its tree in the frame centred
+/// on it (origin `origin`), as `kdtree build` makes it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CachedTree {
+    /// Origin (world coordinates) of the frame the tree was built in.
+    pub origin: DVec3,
+    /// Vertex positions in world coordinates, as read (f64).
+    pub positions: Vec<[f64; 3]>,
+    /// Triangles (indices into `positions`), meshes one after another.
+    pub indices: Vec<[u32; 3]>,
+    /// Number of triangles of each mesh, in scene order (sums to `indices.len()`).
+    pub mesh_triangles: Vec<u64>,
+    /// The tree over `indices`, in the frame at `origin`.
+    pub tree: KdTree,
+}
+
+/// The fixed-size start of an entry (120 bytes, no padding).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable)]
+struct Header {
+    /// [`MAGIC`].
+    magic: [u8; 8],
+    /// [`CACHE_VERSION`].
+    version: u32,
+    /// Number of meshes.
+    meshes: u32,
+    /// The entry's key (low, high 64 bits).
+    key: [u64; 2],
+    /// Origin of the tree's frame.
+    origin: [f64; 3],
+    /// The tree's root box (min, max).
+    root: [f32; 6],
+    /// Number of vertex positions.
+    positions: u64,
+    /// Number of triangles.
+    triangles: u64,
+    /// Number of tree nodes.
+    nodes: u64,
+    /// Length of the leaves' triangle list.
+    tri_indices: u64,
+    /// XXH3-64 of the whole entry with this field zero.
+    checksum: u64,
+}
+
+/// Unique suffix of temporary files within one process.
+static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// A folder of cache entries.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct TreeCache {
+    dir: PathBuf,
+}
+
+impl TreeCache {
+    /// A cache in `dir` (created when the first entry is stored).
+    pub fn new(dir: impl Into<PathBuf>) -> TreeCache {
+        TreeCache { dir: dir.into() }
+    }
+
+    /// The user's cache folder: `$XDG_CACHE_HOME/wavefront`, else `$HOME/.cache/wavefront`
+    /// (`None` when neither variable is set to an absolute path).
+    pub fn default_dir() -> Option<PathBuf> {
+        let absolute = |v: &str| {
+            std::env::var_os(v)
+                .map(PathBuf::from)
+                .filter(|p| p.is_absolute())
+        };
+        absolute("XDG_CACHE_HOME")
+            .or_else(|| absolute("HOME").map(|h| h.join(".cache")))
+            .map(|d| d.join("wavefront"))
+    }
+
+    /// The folder.
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Where the entry for `key` lives.
+    pub fn path_of(&self, key: CacheKey) -> PathBuf {
+        self.dir.join(format!("{}.{EXTENSION}", key.hex()))
+    }
+
+    /// The entry for `key`: `Ok(None)` when there is none, an error when it exists but cannot
+    /// be trusted (the caller rebuilds and overwrites it).
+    pub fn load(&self, key: CacheKey) -> Result<Option<CachedTree>, CacheError> {
+        let path = self.path_of(key);
+        let bytes = match std::fs::read(&path) {
+            Ok(b) => b,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
+            Err(source) => return Err(CacheError::Read { path, source }),
+        };
+        decode(&bytes, key)
+            .map(Some)
+            .map_err(|reason| CacheError::Invalid { path, reason })
+    }
+
+    /// Writes the entry for `key` atomically (unique temporary name, then rename).
+    pub fn store(&self, key: CacheKey, entry: &CachedTree) -> io::Result<PathBuf> {
+        std::fs::create_dir_all(&self.dir)?;
+        let path = self.path_of(key);
+        let tmp = self.dir.join(format!(
+            ".{}.{}-{}.tmp",
+            key.hex(),
+            std::process::id(),
+            TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        let result = std::fs::write(&tmp, encode(key, entry)).and_then(|()| {
+            std::fs::rename(&tmp, &path)?;
+            Ok(path)
+        });
+        if result.is_err() {
+            let _ = std::fs::remove_file(&tmp);
+        }
+        result
+    }
+}
+
+/// The entry's bytes: header, then the five arrays.
+fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
+    let tree = &e.tree;
+    let parts: [&[u8]; 5] = [
+        bytemuck::cast_slice(&e.mesh_triangles),
+        bytemuck::cast_slice(&e.positions),
+        bytemuck::cast_slice(&e.indices),
+        bytemuck::cast_slice(&tree.nodes),
+        bytemuck::cast_slice(&tree.tri_indices),
+    ];
+    let payload: usize = parts.iter().map(|p| p.len()).sum();
+    let (lo, hi) = tree.root;
+    let mut header = Header {
+        magic: MAGIC,
+        version: CACHE_VERSION,
+        meshes: e.mesh_triangles.len() as u32,
+        key: [key.0 as u64, (key.0 >> 64) as u64],
+        origin: e.origin.to_array(),
+        root: [lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]],
+        positions: e.positions.len() as u64,
+        triangles: e.indices.len() as u64,
+        nodes: tree.nodes.len() as u64,
+        tri_indices: tree.tri_indices.len() as u64,
+        checksum: 0,
+    };
+    let mut out = Vec::with_capacity(size_of::<Header>() + payload);
+    out.extend_from_slice(bytemuck::bytes_of(&header));
+    for p in parts {
+        out.extend_from_slice(p);
+    }
+    header.checksum = checksum(&out);
+    out[..size_of::<Header>()].copy_from_slice(bytemuck::bytes_of(&header));
+    out
+}
+
+/// XXH3-64 of an entry with its checksum field read as zero.
+fn checksum(bytes: &[u8]) -> u64 {
+    let hsize = size_of::<Header>();
+    let mut h = xxhash_rust::xxh3::Xxh3::new();
+    h.update(&bytes[..hsize - 8]);
+    h.update(&[0u8; 8]);
+    h.update(&bytes[hsize..]);
+    h.digest()
+}
+
+/// Checks and decodes an entry; the error says which check failed.
+fn decode(bytes: &[u8], key: CacheKey) -> Result<CachedTree, String> {
+    let hsize = size_of::<Header>();
+    if bytes.len() < hsize {
+        return Err(format!("truncated ({} bytes)", bytes.len()));
+    }
+    let h: Header = bytemuck::pod_read_unaligned(&bytes[..hsize]);
+    if h.magic != MAGIC {
+        return Err("not a wavefront tree cache entry (bad magic)".into());
+    }
+    if h.version != CACHE_VERSION {
+        return Err(format!(
+            "format version {} (this build reads {CACHE_VERSION})",
+            h.version
+        ));
+    }
+    if h.key != [key.0 as u64, (key.0 >> 64) as u64] {
+        return Err("stored for another key".into());
+    }
+    let sizes = [
+        (h.meshes as u64, 8u64),
+        (h.positions, 24),
+        (h.triangles, 12),
+        (h.nodes, 8),
+        (h.tri_indices, 4),
+    ];
+    let mut payload: u64 = 0;
+    for (n, size) in sizes {
+        payload = n
+            .checked_mul(size)
+            .and_then(|b| payload.checked_add(b))
+            .ok_or("sizes overflow")?;
+    }
+    if bytes.len() as u64 != hsize as u64 + payload {
+        return Err(format!(
+            "{} bytes where the header announces {}",
+            bytes.len(),
+            hsize as u64 + payload
+        ));
+    }
+    let body = &bytes[hsize..];
+    if checksum(bytes) != h.checksum {
+        return Err("checksum mismatch".into());
+    }
+    let mut at = 0usize;
+    let mut take = |n: u64, size: u64| {
+        let len = (n * size) as usize;
+        let s = &body[at..at + len];
+        at += len;
+        s
+    };
+    let mesh_triangles: Vec<u64> = collect(take(sizes[0].0, 8));
+    let positions: Vec<[f64; 3]> = collect(take(sizes[1].0, 24));
+    let indices: Vec<[u32; 3]> = collect(take(sizes[2].0, 12));
+    let nodes: Vec<KdNode> = collect(take(sizes[3].0, 8));
+    let tri_indices: Vec<u32> = collect(take(sizes[4].0, 4));
+
+    if mesh_triangles.iter().sum::<u64>() != indices.len() as u64 {
+        return Err("mesh triangle counts do not add up".into());
+    }
+    if positions.len() > u32::MAX as usize
+        || indices
+            .iter()
+            .flatten()
+            .any(|&i| i as usize >= positions.len())
+    {
+        return Err("vertex index out of range".into());
+    }
+    if !positions.iter().flatten().all(|c| c.is_finite()) || !h.origin.iter().all(|c| c.is_finite())
+    {
+        return Err("non-finite coordinate".into());
+    }
+    if tri_indices.iter().any(|&t| t as usize >= indices.len()) {
+        return Err("triangle index out of range".into());
+    }
+    check_nodes(&nodes, tri_indices.len())?;
+    let r = h.root;
+    Ok(CachedTree {
+        origin: DVec3::from_array(h.origin),
+        positions,
+        mesh_triangles,
+        tree: KdTree {
+            nodes,
+            tri_indices,
+            root: ([r[0], r[1], r[2]], [r[3], r[4], r[5]]),
+            triangle_count: indices.len(),
+        },
+        indices,
+    })
+}
+
+/// Copies bytes (any alignment) into a vector of `T`; `bytes.len()` is a multiple of its size.
+fn collect<T: Pod>(bytes: &[u8]) -> Vec<T> {
+    let mut v = vec![T::zeroed(); bytes.len() / size_of::<T>()];
+    bytemuck::cast_slice_mut::<T, u8>(&mut v).copy_from_slice(bytes);
+    v
+}
+
+/// Structure of a pre-order node array: every right child after its left child (so no cycles),
+/// every node reached exactly once from the root, leaves within the triangle list, depth at most
+/// [`MAX_DEPTH`], finite split planes.
+fn check_nodes(nodes: &[KdNode], list: usize) -> Result<(), String> {
+    if nodes.is_empty() {
+        return Err("no nodes".into());
+    }
+    // Pre-order walk: (node, depth); the next node visited must be the next in the array.
+    let mut stack = vec![(0usize, 0usize)];
+    let mut expected = 0usize;
+    while let Some((i, depth)) = stack.pop() {
+        if i != expected || i >= nodes.len() {
+            return Err(format!("node {i} out of pre-order"));
+        }
+        expected += 1;
+        if depth > MAX_DEPTH {
+            return Err("tree deeper than the traversal stack".into());
+        }
+        let n = nodes[i];
+        if n.is_leaf() {
+            if n.offset() as usize + n.count() as usize > list {
+                return Err(format!("leaf {i} outside the triangle list"));
+            }
+        } else {
+            let right = n.right() as usize;
+            if right <= i + 1 || right >= nodes.len() || !n.split().is_finite() {
+                return Err(format!("inner node {i} has a bad child or split"));
+            }
+            stack.push((right, depth + 1));
+            stack.push((i + 1, depth + 1));
+        }
+    }
+    if expected != nodes.len() {
+        return Err("unreachable nodes".into());
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::TriangleMesh;
+
+    fn entry() -> CachedTree {
+        let positions = vec![
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [0.0, 0.0, 1.0],
+        ];
+        let indices = vec![[0, 1, 2], [0, 1, 3], [1, 2, 3]];
+        let mesh = TriangleMesh::new(
+            positions.iter().map(|p| p.map(|c| c as f32)).collect(),
+            indices.clone(),
+        );
+        CachedTree {
+            origin: DVec3::ZERO,
+            positions,
+            indices,
+            mesh_triangles: vec![2, 1],
+            tree: KdTree::build(&mesh, BuildMethod::Sah),
+        }
+    }
+
+    #[test]
+    fn entries_round_trip() {
+        let key = CacheKey(0x1234_5678_9abc_def0_0fed_cba9_8765_4321);
+        let e = entry();
+        assert_eq!(decode(&encode(key, &e), key).expect("valid"), e);
+    }
+
+    #[test]
+    fn every_truncation_and_byte_flip_is_rejected() {
+        let key = CacheKey(7);
+        let bytes = encode(key, &entry());
+        for len in 0..bytes.len() {
+            assert!(decode(&bytes[..len], key).is_err(), "truncated to {len}");
+        }
+        for i in 0..bytes.len() {
+            let mut b = bytes.clone();
+            b[i] ^= 0x40;
+            assert!(decode(&b, key).is_err(), "flipped byte {i}");
+        }
+        assert!(decode(&bytes, CacheKey(8)).is_err(), "another key");
+    }
+
+    #[test]
+    fn keys_depend_on_bytes_and_builder() {
+        let a = CacheKey::new(BuildMethod::Sah, &[b"v 0 0 0"]);
+        assert_ne!(a, CacheKey::new(BuildMethod::Midpoint, &[b"v 0 0 0"]));
+        assert_ne!(a, CacheKey::new(BuildMethod::Sah, &[b"v 0 0 1"]));
+        assert_ne!(a, CacheKey::new(BuildMethod::Sah, &[b"v 0 0", b" 0"]));
+        assert_eq!(a, CacheKey::new(BuildMethod::Sah, &[b"v 0 0 0"]));
+    }
+}
