@@ -14,7 +14,7 @@ use crate::cache::{CacheKey, CachedTree, TreeCache};
 use crate::error::LoadError;
 use crate::frame::RenderFrame;
 use crate::mesh::{MeshError, ObjMesh, TriangleMesh};
-use crate::scene::{Scene, TreeSource};
+use crate::scene::{Normals, Scene, TreeSource};
 
 /// What the cache did for one load.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -52,10 +52,15 @@ impl World {
             return Ok((World::analytic(scene, frame, None), Setup::default()));
         }
         let source = tree_source(scene)?;
+        // Tree files, MTL materials and vertex normals take the full (tobj) path, uncached.
+        let uncached = scene
+            .meshes
+            .iter()
+            .any(|m| m.mtl.is_some() || m.normals == Normals::Vertex);
         let method = match source {
-            TreeSource::Sah => BuildMethod::Sah,
-            TreeSource::Midpoint => BuildMethod::Midpoint,
-            TreeSource::File(_) => {
+            TreeSource::Sah if !uncached => BuildMethod::Sah,
+            TreeSource::Midpoint if !uncached => BuildMethod::Midpoint,
+            _ => {
                 let (t, times) = load_triangles(scene, &frame)?;
                 let setup = Setup {
                     times,
@@ -95,7 +100,9 @@ impl World {
                     c.path_of(key).display()
                 )),
                 Ok(None) => {}
-                Err(e) => setup.warnings.push(format!("{}; rebuilding it", chain(&e))),
+                Err(e) => setup
+                    .warnings
+                    .push(format!("{}; rebuilding it", crate::error::chain(&e))),
             }
         }
         let mut parse_seconds = 0.0;
@@ -200,19 +207,9 @@ fn triangles_in(
     Ok(Triangles {
         mesh,
         world_positions: entry.positions,
+        vertex_normals: vec![],
         material_ranges,
         tree,
         source: scene.meshes[0].kdtree.clone(),
     })
-}
-
-/// An error and its sources on one line.
-fn chain(e: &dyn std::error::Error) -> String {
-    let mut s = e.to_string();
-    let mut source = e.source();
-    while let Some(c) = source {
-        s.push_str(&format!(": {c}"));
-        source = c.source();
-    }
-    s
 }

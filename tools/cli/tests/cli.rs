@@ -26,6 +26,8 @@ impl Scratch {
             .args(args)
             .current_dir(&self.0)
             .env_remove("WAVEFRONT_SIBENIK")
+            // Tree-cache entries stay in the scratch directory, not the user's cache.
+            .env("XDG_CACHE_HOME", self.0.join("cache"))
             .output()
             .expect("cannot run the wavefront binary")
     }
@@ -309,6 +311,7 @@ fn the_cli_rejects_mutated_scenes_cleanly() {
         std::fs::write(&scene, &text).unwrap();
         let out = dir.join(format!("o{k}.png"));
         let run = Command::new(env!("CARGO_BIN_EXE_wavefront"))
+            .env("XDG_CACHE_HOME", dir.join("cache"))
             .args([
                 "render",
                 scene.to_str().unwrap(),

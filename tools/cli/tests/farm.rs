@@ -25,7 +25,9 @@ impl Scratch {
         c.args(args)
             .current_dir(&self.0)
             .env_remove("SLURM_ARRAY_TASK_ID")
-            .env_remove("JOB_COMPLETION_INDEX");
+            .env_remove("JOB_COMPLETION_INDEX")
+            // Tree-cache entries stay in the scratch directory, not the user's cache.
+            .env("XDG_CACHE_HOME", self.0.join("cache"));
         c
     }
 

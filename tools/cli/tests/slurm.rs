@@ -147,7 +147,8 @@ fn path_with_sbin() -> std::ffi::OsString {
 
 fn wavefront(dir: &Path) -> Command {
     let mut c = Command::new(env!("CARGO_BIN_EXE_wavefront"));
-    c.current_dir(dir);
+    // Tree-cache entries stay in the scratch directory, not the user's cache.
+    c.current_dir(dir).env("XDG_CACHE_HOME", dir.join("cache"));
     c
 }
 
