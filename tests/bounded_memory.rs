@@ -2,7 +2,7 @@
 //! shade → shadow passes, and images encoded row by row as waves finish, give exactly the image
 //! of an unsplit render held in memory.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::Vec3;
 use wavefront::output::{ImageMeta, ImageStream};
@@ -11,7 +11,7 @@ use wavefront::scene::PointLight;
 use wavefront::scene::builtin::spheres;
 use wavefront::schedule::{Observer, Queues, StageRun};
 use wavefront::{RenderOptions, Scene, Stage, Stats, World, render_into, render_observed};
-use wavefront_kit::testkit::{Rng, in_pool};
+use wavefront_kit::testkit::{Rng, Scratch, in_pool};
 
 /// Scene A lit by `n` seeded random point lights above the floor.
 fn scene_a_with_random_lights(n: usize) -> Scene {
@@ -126,39 +126,6 @@ fn shadows_off_and_the_hit_mask_ignore_the_budget() {
         let (tiny, _, passes) = render_with_budget(&scene, &world, 1);
         assert!(tiny == whole);
         assert_eq!(passes.largest_shadow_queue, 0);
-    }
-}
-
-/// A scratch directory, removed on drop.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(name: &str) -> Scratch {
-        let dir =
-            std::env::temp_dir().join(format!("wavefront-bounded-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-
-    fn join(&self, name: &str) -> PathBuf {
-        self.0.join(name)
-    }
-
-    /// Names of the files in the directory, sorted.
-    fn files(&self) -> Vec<String> {
-        let mut names: Vec<String> = std::fs::read_dir(&self.0)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
-        names
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

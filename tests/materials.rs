@@ -2,38 +2,14 @@
 //! the errors a bad MTL binding gets, smooth vertex normals against the analytic sphere, and
 //! linear HDR output read back exactly.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::{DVec3, Vec3};
 use wavefront::scene::Scene;
 use wavefront::scene::file::parse;
 use wavefront::{Pipeline, RenderOptions, Stage, World, render};
 use wavefront_kit::oracle::compare_rgb8;
-use wavefront_kit::testkit::{oracle_png_bytes, reference_error, render_png_bytes};
-
-/// A scratch directory, removed on drop.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(name: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("wavefront-mtl-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-
-    fn write(&self, file: &str, text: &str) -> PathBuf {
-        let p = self.0.join(file);
-        std::fs::write(&p, text).unwrap();
-        p
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
+use wavefront_kit::testkit::{Scratch, oracle_png_bytes, reference_error, render_png_bytes};
 
 /// Scene A's camera, light and a blue sphere, plus `[[mesh]]` lines.
 fn scene_with_mesh(dir: &Path, mesh: &str) -> Result<Scene, String> {
@@ -109,7 +85,7 @@ fn an_obj_with_mtl_materials_renders_as_the_oracle_does() {
     dir.write("room.obj", ROOM_OBJ);
     dir.write("room.mtl", ROOM_MTL);
     let scene = scene_with_mesh(
-        &dir.0,
+        dir.path(),
         "[[mesh]]\npath = \"room.obj\"\nmaterial = \"mtl\"\nfallback_material = \"grey\"",
     )
     .unwrap();
@@ -149,7 +125,7 @@ fn without_a_reflecting_face_the_pipeline_has_no_reflect_stage() {
     dir.write("room.obj", &ROOM_OBJ.replace("usemtl mirror", "usemtl red"));
     dir.write("room.mtl", ROOM_MTL);
     let mut scene = scene_with_mesh(
-        &dir.0,
+        dir.path(),
         "[[mesh]]\npath = \"room.obj\"\nmaterial = \"mtl\"\nfallback_material = \"grey\"",
     )
     .unwrap();
@@ -163,7 +139,7 @@ fn a_bad_mtl_binding_is_an_error_naming_the_obj_file_and_line() {
     let mesh = "[[mesh]]\npath = \"room.obj\"\nmaterial = \"mtl\"\nfallback_material = \"grey\"";
     // The library is missing.
     dir.write("room.obj", ROOM_OBJ);
-    let e = scene_with_mesh(&dir.0, mesh).unwrap_err();
+    let e = scene_with_mesh(dir.path(), mesh).unwrap_err();
     assert!(e.contains("room.obj:1:") && e.contains("room.mtl"), "{e}");
     // An unknown name.
     dir.write("room.mtl", ROOM_MTL);
@@ -171,15 +147,18 @@ fn a_bad_mtl_binding_is_an_error_naming_the_obj_file_and_line() {
         "room.obj",
         &ROOM_OBJ.replace("usemtl red", "usemtl blue_glass"),
     );
-    let e = scene_with_mesh(&dir.0, mesh).unwrap_err();
+    let e = scene_with_mesh(dir.path(), mesh).unwrap_err();
     assert!(
         e.contains("room.obj:13:") && e.contains("blue_glass"),
         "{e}"
     );
     // Faces before any usemtl without a fallback.
     dir.write("room.obj", ROOM_OBJ);
-    let e =
-        scene_with_mesh(&dir.0, "[[mesh]]\npath = \"room.obj\"\nmaterial = \"mtl\"").unwrap_err();
+    let e = scene_with_mesh(
+        dir.path(),
+        "[[mesh]]\npath = \"room.obj\"\nmaterial = \"mtl\"",
+    )
+    .unwrap_err();
     assert!(
         e.contains("room.obj:9:") && e.contains("fallback_material"),
         "{e}"
@@ -230,10 +209,10 @@ fn smooth_normals_on_a_sphere_mesh_approach_the_analytic_sphere_without_terminat
         "ball.obj",
         &uv_sphere(DVec3::new(0.0, 0.0, -7.0), 1.5, 24, 48),
     );
-    let analytic = scene_with_mesh(&dir.0, "").unwrap();
+    let analytic = scene_with_mesh(dir.path(), "").unwrap();
     let mesh_scene = |normals: &str| {
         let mut s = scene_with_mesh(
-            &dir.0,
+            dir.path(),
             &format!("[[mesh]]\npath = \"ball.obj\"\nmaterial = \"blue\"\nnormals = \"{normals}\""),
         )
         .unwrap();
@@ -266,12 +245,12 @@ fn smooth_normals_on_a_sphere_mesh_approach_the_analytic_sphere_without_terminat
 fn an_exr_holds_the_linear_film_exactly() {
     use exr::prelude::{ReadChannels, ReadLayers};
     let dir = Scratch::new("exr");
-    let mut scene = scene_with_mesh(&dir.0, "").unwrap();
+    let mut scene = scene_with_mesh(dir.path(), "").unwrap();
     scene.image.width = 40;
     scene.image.height = 30;
     let world = World::load(&scene).unwrap();
     let film = render(&scene, &world, RenderOptions::default(), |_, _| {}).0;
-    let path = dir.0.join("a.exr");
+    let path = dir.join("a.exr");
     film.save(&path, scene.image.gamma).unwrap();
     let image = exr::prelude::read()
         .no_deep_data()

@@ -5,38 +5,15 @@
 //! rendered unmoved. Scenes are moved by writing their coordinates — scene values and OBJ vertex
 //! lines — with full f64 precision, as a user's file would carry them.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::{DVec3, Vec3};
 use wavefront::scene::builtin::spheres;
 use wavefront::scene::{Camera, Material, MeshRef, Plane, PointLight, Scene, Sphere, TreeSource};
 use wavefront_kit::oracle::{ImageDiff, compare_rgb8};
 use wavefront_kit::testkit::{
-    oracle_png_bytes, reference_error, render_png_bytes, sibenik_crop, sibenik_mesh,
+    Scratch, oracle_png_bytes, reference_error, render_png_bytes, sibenik_crop, sibenik_mesh,
 };
-
-/// A scratch directory for generated OBJ files, removed on drop.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(name: &str) -> Scratch {
-        let dir =
-            std::env::temp_dir().join(format!("wavefront-scale-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        Scratch(dir)
-    }
-
-    fn path(&self, file: &str) -> PathBuf {
-        self.0.join(file)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
 
 /// Writes quads (4 corners each, two triangles) as OBJ with shortest round-trip f64 coordinates.
 fn write_quads(path: &Path, quads: &[[DVec3; 4]]) {
@@ -130,7 +107,7 @@ fn cornell(dir: &Scratch, delta: DVec3) -> Scene {
         .iter()
         .enumerate()
         .map(|(m, (file, quads))| {
-            let path = dir.path(file);
+            let path = dir.join(file);
             write_quads(&path, quads);
             MeshRef {
                 path,
@@ -314,8 +291,8 @@ fn thin_geometry_never_leaks_light() {
             ]
             .map(|p| DVec3::from_array(p) + delta)
         };
-        let lower = dir.path("lower.obj");
-        let upper = dir.path("upper.obj");
+        let lower = dir.join("lower.obj");
+        let upper = dir.join("upper.obj");
         write_quads(&lower, &[quad(0.0, 1.0)]);
         write_quads(&upper, &[quad(1e-4, 4.0)]);
         let mut s = empty_scene(64);
@@ -383,7 +360,7 @@ fn a_sibenik_crop_moved_by_every_power_of_ten_renders_as_at_home() {
         for t in &obj.indices {
             text.push_str(&format!("f {} {} {}\n", t[0] + 1, t[1] + 1, t[2] + 1));
         }
-        let file = dir.path("moved.obj");
+        let file = dir.join("moved.obj");
         std::fs::write(&file, text).unwrap();
         let mut scene = home.translated(delta);
         scene.meshes[0].path = file;
@@ -407,14 +384,14 @@ fn a_tree_file_in_world_coordinates_fits_the_camera_frame() {
     let quads: Vec<[DVec3; 4]> = ["white.obj", "red.obj", "green.obj"]
         .iter()
         .flat_map(|f| {
-            let m = ObjMesh::read(&dir.path(f)).unwrap();
+            let m = ObjMesh::read(&dir.join(f)).unwrap();
             m.positions
                 .chunks(4)
                 .map(|q| std::array::from_fn(|i| DVec3::from(q[i])))
                 .collect::<Vec<_>>()
         })
         .collect();
-    let obj_path = dir.path("all.obj");
+    let obj_path = dir.join("all.obj");
     write_quads(&obj_path, &quads);
     scene.meshes.truncate(1);
     scene.meshes[0].path = obj_path.clone();
@@ -425,7 +402,7 @@ fn a_tree_file_in_world_coordinates_fits_the_camera_frame() {
     let tree = KdTree::build(&obj.to_frame(frame.origin).unwrap(), BuildMethod::Sah);
     let mut text = Vec::new();
     tree.write_text_in(&mut text, &frame).unwrap();
-    let file = dir.path("all.kd");
+    let file = dir.join("all.kd");
     std::fs::write(&file, &text).unwrap();
     let first = String::from_utf8_lossy(&text)
         .lines()
