@@ -66,8 +66,10 @@ fn render_with_budget(
     world: &World,
     shadow_rows: usize,
 ) -> (Vec<u8>, Stats, ShadePasses) {
+    // The whole frame in one wave, so one pass spans all of a depth's hits.
     let options = RenderOptions {
         shadow_rows,
+        wave_samples: 1 << 20,
         ..RenderOptions::default()
     };
     let mut stats = Stats::default();

@@ -44,8 +44,10 @@ use crate::world::World;
 pub use observer::{Observer, Progress, Queues, StageRun};
 pub use stage::Stage;
 
-/// Default cap on samples per wave: bounds memory whatever the samples per pixel.
-pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 20;
+/// Default cap on samples per wave: bounds memory whatever the samples per pixel. 2^16 samples
+/// keep a wave's queues at a few MB (in L3): scene A at 64 spp peaks at 26 MB instead of 272 MB
+/// with 2^20, at the same speed (1.96 vs 2.00 s, one run each, 2 threads).
+pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 16;
 
 /// Largest accepted cap on samples per wave: a wave's sample slots are `u32`, and its queues must
 /// fit in memory (2^28 samples already need tens of GB).
