@@ -44,11 +44,14 @@ pub fn intersect_naive(o: Vec3, d: Vec3, center: Vec3, radius: f32, t_max: f32) 
         return None;
     }
     let s = disc.sqrt();
-    pick((-b - s) / (2.0 * a), (-b + s) / (2.0 * a), t_max)
+    nearest_root((-b - s) / (2.0 * a), (-b + s) / (2.0 * a), t_max)
 }
 
+/// The nearer of two roots `t0`, `t1` (in either order) with `0 < t < t_max`, or `None`: how every
+/// ray/sphere test in the project picks its answer.
 #[inline]
-fn pick(near: f32, far: f32, t_max: f32) -> Option<f32> {
+pub fn nearest_root(t0: f32, t1: f32, t_max: f32) -> Option<f32> {
+    let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
     if near > 0.0 && near < t_max {
         Some(near)
     } else if far > 0.0 && far < t_max {

@@ -15,10 +15,10 @@
 
 use rayon::prelude::*;
 
-use super::build_sah::{self, EMPTY_FACTOR, EMPTY_MIN_FRACTION, Flat, clip, tri_bounds};
+use super::build_sah::{self, AxisCost, Flat, clip, tri_bounds};
 use super::node::KdNode;
 use super::overlap::Aabb;
-use super::{COST_INTERSECT, COST_TRAVERSAL, split_box};
+use super::{COST_INTERSECT, split_box};
 use crate::mesh::TriangleMesh;
 
 /// Bins per axis.
@@ -105,14 +105,10 @@ fn find_split(bx: &Aabb, bounds: &[Aabb]) -> Option<(f32, usize, f32)> {
     let ki = COST_INTERSECT / sa;
     let mut best: Option<(f32, usize, f32)> = None;
     for axis in 0..3 {
-        let (lo, hi) = (bx.0[axis], bx.1[axis]);
-        if lo >= hi {
+        let Some(axis_cost) = AxisCost::new(bx, ext, axis, ki) else {
             continue;
-        }
-        let d1 = ext[(axis + 1) % 3];
-        let d2 = ext[(axis + 2) % 3];
-        let (cap, perim) = (2.0 * d1 * d2, 2.0 * (d1 + d2));
-        let min_empty = EMPTY_MIN_FRACTION * (hi - lo);
+        };
+        let (lo, hi) = (axis_cost.lo, axis_cost.hi);
         // Plane i lies between bins i-1 and i: left = bounds starting below it, right = bounds
         // ending at or above it.
         let (mut nl, mut nr) = (0usize, n);
@@ -123,12 +119,7 @@ fn find_split(bx: &Aabb, bounds: &[Aabb]) -> Option<(f32, usize, f32)> {
             if !(p > lo && p < hi) {
                 continue;
             }
-            let (wl, wr) = (p - lo, hi - p);
-            let (sl, sr) = (cap + wl * perim, cap + wr * perim);
-            let mut c = COST_TRAVERSAL + ki * (sl * nl as f32 + sr * nr as f32);
-            if (nl == 0 && wl >= min_empty) || (nr == 0 && wr >= min_empty) {
-                c *= EMPTY_FACTOR;
-            }
+            let c = axis_cost.cost(p, nl, nr);
             if best.is_none_or(|b| c < b.0) {
                 best = Some((c, axis, p));
             }

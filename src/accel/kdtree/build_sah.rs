@@ -196,6 +196,59 @@ struct Split {
     planar_left: bool,
 }
 
+/// The SAH cost of split planes on one axis of a node's box: the one cost formula of the exact
+/// sweep and the binned builder (`build_binned`), so both builders weigh a plane alike.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct AxisCost {
+    /// The box's extent on the axis.
+    pub lo: f32,
+    /// The box's extent on the axis.
+    pub hi: f32,
+    /// Area of the two faces perpendicular to the axis.
+    cap: f32,
+    /// Perimeter of those faces (area per unit of extent along the axis).
+    perim: f32,
+    /// `COST_INTERSECT` over the node's surface area.
+    ki: f32,
+    /// Smallest empty side that earns the empty-space bonus.
+    min_empty: f32,
+}
+
+impl AxisCost {
+    /// The costs on `axis` of box `bx` (extent `ext`, `ki = COST_INTERSECT / area`); `None` when
+    /// the box is flat on the axis.
+    pub(crate) fn new(bx: &Aabb, ext: [f32; 3], axis: usize, ki: f32) -> Option<AxisCost> {
+        let (lo, hi) = (bx.0[axis], bx.1[axis]);
+        if lo >= hi {
+            return None;
+        }
+        let d1 = ext[(axis + 1) % 3];
+        let d2 = ext[(axis + 2) % 3];
+        Some(AxisCost {
+            lo,
+            hi,
+            cap: 2.0 * d1 * d2,
+            perim: 2.0 * (d1 + d2),
+            ki,
+            min_empty: EMPTY_MIN_FRACTION * (hi - lo),
+        })
+    }
+
+    /// The cost of the plane at `p` (`lo < p < hi`) with `l` triangles left and `r` right.
+    #[inline]
+    pub(crate) fn cost(&self, p: f32, l: usize, r: usize) -> f32 {
+        let (wl, wr) = (p - self.lo, self.hi - p);
+        let sl = self.cap + wl * self.perim;
+        let sr = self.cap + wr * self.perim;
+        let c = COST_TRAVERSAL + self.ki * (sl * l as f32 + sr * r as f32);
+        if (l == 0 && wl >= self.min_empty) || (r == 0 && wr >= self.min_empty) {
+            c * EMPTY_FACTOR
+        } else {
+            c
+        }
+    }
+}
+
 fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
     let ext = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
     let sa = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0]);
@@ -205,16 +258,11 @@ fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
     let ki = COST_INTERSECT / sa;
     let mut best: Option<Split> = None;
     let mut best_cost = f32::INFINITY;
-    for axis in 0..3 {
-        let (lo, hi) = (bx.0[axis], bx.1[axis]);
-        if lo >= hi {
+    for (axis, ev) in events.into_iter().enumerate() {
+        let Some(axis_cost) = AxisCost::new(bx, ext, axis, ki) else {
             continue;
-        }
-        let d1 = ext[(axis + 1) % 3];
-        let d2 = ext[(axis + 2) % 3];
-        let (cap, perim) = (2.0 * d1 * d2, 2.0 * (d1 + d2));
-        let min_empty = EMPTY_MIN_FRACTION * (hi - lo);
-        let ev = events[axis];
+        };
+        let (lo, hi) = (axis_cost.lo, axis_cost.hi);
         let (mut nl, mut nr) = (0usize, n);
         let mut i = 0;
         while i < ev.len() {
@@ -231,17 +279,7 @@ fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
             nr -= pe + pp;
             let p = unord(key as u32);
             if p > lo && p < hi {
-                let (wl, wr) = (p - lo, hi - p);
-                let sl = cap + wl * perim;
-                let sr = cap + wr * perim;
-                let cost = |l: usize, r: usize| {
-                    let c = COST_TRAVERSAL + ki * (sl * l as f32 + sr * r as f32);
-                    if (l == 0 && wl >= min_empty) || (r == 0 && wr >= min_empty) {
-                        c * EMPTY_FACTOR
-                    } else {
-                        c
-                    }
-                };
+                let cost = |l: usize, r: usize| axis_cost.cost(p, l, r);
                 let (c, planar_left) = if pp == 0 {
                     (cost(nl, nr), true)
                 } else {

@@ -34,15 +34,7 @@ fn hit_sphere(o: Vec3, d: Vec3, s: &Sphere, t_max: f32) -> Option<f32> {
     }
     let c = f.length_squared() - s.radius * s.radius;
     let q = -b - disc.sqrt().copysign(b);
-    let (t0, t1) = (c / q, q);
-    let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
-    if near > 0.0 && near < t_max {
-        Some(near)
-    } else if far > 0.0 && far < t_max {
-        Some(far)
-    } else {
-        None
-    }
+    sphere::nearest_root(c / q, q, t_max)
 }
 
 #[inline]
