@@ -29,8 +29,10 @@
 //! pixels go to a [`film::PixelSink`] — an in-memory [`Film`], or an image file encoded row by
 //! row on a writer thread ([`output::ImageStream`]).
 //!
-//! `unsafe` code is denied crate-wide; the SSE2 lanes of the kD-tree packet traversal
-//! (`accel::kdtree::simd`) and the Embree FFI peer (`peer::embree`, behind a feature) opt out.
+//! `unsafe` code is denied crate-wide; one module opts out, [`simd`] (run-time dispatch to
+//! AVX2/AVX-512 builds of a kernel, and the SSE2 lanes of the kD-tree packet traversal), and so
+//! does the Embree FFI peer outside the library (`wavefront-kit`'s `peer::embree`, behind a
+//! feature).
 #![deny(unsafe_code)]
 
 pub mod accel;
@@ -47,6 +49,7 @@ pub mod region;
 pub mod sampling;
 pub mod scene;
 pub mod schedule;
+pub mod simd;
 pub mod stats;
 pub mod tile;
 pub mod wave;

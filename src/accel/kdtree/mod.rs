@@ -3,8 +3,8 @@
 //! Split like Embree/obvhs: [`node`] (8-byte node layout), `build_midpoint` (the assignment's
 //! longest-axis midpoint rule), `build_binned` (parallel binned SAH for the upper levels of the
 //! default SAH tree) over `build_sah` (Wald & Havran 2006, O(N log N), the exact sweep below),
-//! `traverse` ([`KdAccel`]: closest and occluded queries), `simd` (the SSE2 lanes the packet
-//! traversal uses, the only `unsafe` code of the crate's kernels), `text` (the SPEC §6 text
+//! `traverse` ([`KdAccel`]: closest and occluded queries; its SSE2 lanes are in [`crate::simd`],
+//! the crate's one `unsafe` module), `text` (the SPEC §6 text
 //! format), `validate` and `stats`. The builders read mesh vertices and triangle indices and
 //! write a [`KdTree`] (structure only); [`KdAccel::new`] reads a tree and its mesh and writes the
 //! traversal-ready copy; queries read one ray (origin, unnormalised direction, `t_max`) and
@@ -22,7 +22,6 @@ mod build_sah;
 pub mod node;
 mod overlap;
 mod reframe;
-mod simd;
 mod stats;
 mod text;
 mod traverse;

@@ -6,8 +6,8 @@
 
 use super::LANES;
 use super::ray::Ray;
-use crate::accel::kdtree::simd::F32x4;
 use crate::geometry::triangle::{MollerTrumboreRay, TriangleRay, WatertightRay};
+use crate::simd::F32x4;
 
 /// A triangle test that can test one triangle against the 4 rays of a packet at once, with
 /// results bit-identical to its single-ray test on every lane.

@@ -5,13 +5,13 @@
 //! on that axis plus its current interval; writes a [`Step`]. Generic over [`Lanes`]: `f32` for
 //! the single-ray loop, [`F32x4`] for the 4-ray packet loop, so both make exactly the same
 //! decisions and compute the same interval bits lane by lane (the `f32` operations have the
-//! SSE2 instructions' semantics, see [`crate::accel::kdtree::simd`]). The formula is written as
+//! SSE2 instructions' semantics, see [`crate::simd`]). The formula is written as
 //! its three cases (the sign of the plane distance, or NaN): the single-ray loop branches on the
 //! case, the packet loop computes all three and blends them per lane ([`Lanes::by_sign`]).
 
 use std::ops::{Add, BitAnd, BitOr, Mul, Sub};
 
-use crate::accel::kdtree::simd::{F32x4, M32x4, max_ps, min_ps};
+use crate::simd::{F32x4, M32x4, max_ps, min_ps};
 
 /// Relative slack on ray-interval comparisons (plane distances and hit `t` carry a few ulps).
 pub(super) const SLACK: f32 = 1e-4;

@@ -11,7 +11,7 @@
 //! - `visit`: the closest and occluded modes (leaf visit, culling, answer);
 //! - `single`: the single-ray loop; `packet`: the 4-ray packet loop and the batch driver;
 //!   `hit4`: one triangle against a packet's 4 rays;
-//! - [`crate::accel::kdtree::simd`]: the SSE2 lanes, the only `unsafe` code of the traversal.
+//! - [`crate::simd`]: the SSE2 lanes (the crate's one `unsafe` module).
 //!
 //! Traversal is front-to-back and stack-based (fixed array, no allocation per ray), generic over
 //! the query mode and the triangle test

@@ -18,7 +18,7 @@ use super::single::Entry;
 use super::visit::Visitor;
 use super::{KdAccel, LANES};
 use crate::accel::kdtree::MAX_DEPTH;
-use crate::accel::kdtree::simd::F32x4;
+use crate::simd::F32x4;
 
 /// One pending far child of a packet: node, the lanes that enter it and their intervals.
 /// Intervals first and 16-byte aligned, so a whole-entry copy and the 4-wide loads of `t0`,

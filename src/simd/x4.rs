@@ -1,10 +1,10 @@
-//! Four `f32` lanes ([`F32x4`]) and a lane mask ([`M32x4`]) for the kD tree's packet traversal:
-//! the one module of the crate's traversal code that holds `unsafe` (SSE2 intrinsics).
+//! Four `f32` lanes ([`F32x4`]) and a lane mask ([`M32x4`]) with SSE2 semantics, for the kD
+//! tree's packet traversal.
 //!
 //! Reads and writes nothing but its arguments. Every operation is a safe method with exactly the
 //! semantics of one SSE2 instruction (`minps`, `cmpltps`, ...), so a formula written once over
 //! lanes gives the same bits on every lane as the same formula on scalars with the same
-//! operation semantics (see [`super::traverse`]'s `interval` step). Arithmetic is plain IEEE
+//! operation semantics (see the kD traversal's `interval` step). Arithmetic is plain IEEE
 //! (no fused multiply-add), lane by lane.
 //!
 //! On `x86_64` (where SSE2 is part of the baseline, so every intrinsic is always available) the

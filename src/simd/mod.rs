@@ -1,0 +1,207 @@
+//! SIMD: the crate's one module with `unsafe` code.
+//!
+//! Two tools live here:
+//!
+//! - **Run-time dispatch** ([`dispatch`]): a kernel body, written once as plain safe Rust over
+//!   fixed-size lanes (`[f32; 8]` chunks of SoA columns, or `F32x4`), is compiled once per
+//!   instruction set ([`Level`]) and the best one the CPU has is chosen when the program runs —
+//!   these machines change CPU between sessions (an Intel Xeon with AVX-512, an AMD EPYC with
+//!   AVX2 and AVX-512). The portable path (SSE2 on `x86_64`) is always there.
+//! - **Explicit lanes** (`F32x4`, `M32x4`): four `f32` lanes with exactly the semantics of
+//!   SSE2 instructions, for the kD tree's packet traversal (`x4`).
+//!
+//! Determinism: every path performs the same IEEE operations in the same order on each lane —
+//! Rust never contracts `a * b + c` into a fused multiply-add, and enabling the `fma` feature
+//! does not change that — so a kernel gives the same bits on every [`Level`]. Tests run each
+//! available level and compare.
+#![allow(unsafe_code)]
+
+mod x4;
+
+pub(crate) use x4::{F32x4, M32x4, max_ps, min_ps};
+
+use std::sync::OnceLock;
+
+/// An instruction set a kernel is compiled for, from the most portable up.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Level {
+    /// The target's baseline (SSE2 on `x86_64`).
+    Portable,
+    /// AVX2 + FMA (256-bit lanes).
+    Avx2,
+    /// AVX-512 F/VL/BW/DQ on top of AVX2 (512-bit lanes).
+    Avx512,
+}
+
+impl Level {
+    /// Every level, in order.
+    pub const ALL: [Level; 3] = [Level::Portable, Level::Avx2, Level::Avx512];
+
+    /// The level's name as `WAVEFRONT_SIMD` spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Level::Portable => "portable",
+            Level::Avx2 => "avx2",
+            Level::Avx512 => "avx512",
+        }
+    }
+
+    /// True when this CPU can run code compiled for `self`.
+    pub fn is_supported(self) -> bool {
+        match self {
+            Level::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            Level::Avx2 => {
+                std::arch::is_x86_feature_detected!("avx2")
+                    && std::arch::is_x86_feature_detected!("fma")
+            }
+            #[cfg(target_arch = "x86_64")]
+            Level::Avx512 => {
+                Level::Avx2.is_supported()
+                    && std::arch::is_x86_feature_detected!("avx512f")
+                    && std::arch::is_x86_feature_detected!("avx512vl")
+                    && std::arch::is_x86_feature_detected!("avx512bw")
+                    && std::arch::is_x86_feature_detected!("avx512dq")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+
+    /// The levels this CPU supports, from the most portable up (what tests iterate over).
+    pub fn supported() -> Vec<Level> {
+        Level::ALL
+            .into_iter()
+            .filter(|l| l.is_supported())
+            .collect()
+    }
+
+    /// The best supported level, capped by the `WAVEFRONT_SIMD` environment variable
+    /// (`portable`, `avx2` or `avx512`; an unknown value is ignored) — read once per process.
+    pub fn current() -> Level {
+        static CURRENT: OnceLock<Level> = OnceLock::new();
+        *CURRENT.get_or_init(|| {
+            let cap = std::env::var("WAVEFRONT_SIMD")
+                .ok()
+                .and_then(|v| Level::ALL.into_iter().find(|l| l.name() == v))
+                .unwrap_or(Level::Avx512);
+            Level::supported()
+                .into_iter()
+                .filter(|l| *l <= cap)
+                .max()
+                .unwrap_or(Level::Portable)
+        })
+    }
+}
+
+/// A kernel body to compile once per [`Level`]. Implementations must mark [`Kernel::run`]
+/// `#[inline(always)]`, and so must whatever it calls in its hot loop: only code inlined into the
+/// dispatcher's `#[target_feature]` function is compiled for that level.
+pub trait Kernel {
+    /// What the kernel returns.
+    type Output;
+    /// The body; `level` is the level it runs at (for lane widths chosen per level).
+    fn run(self, level: Level) -> Self::Output;
+}
+
+/// Runs `kernel` compiled for `level`, or for the best supported level below it.
+#[inline]
+pub fn dispatch<K: Kernel>(level: Level, kernel: K) -> K::Output {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if level >= Level::Avx512 && Level::Avx512.is_supported() {
+            // SAFETY: the CPU supports every feature `run_avx512` enables (checked just above).
+            return unsafe { run_avx512(kernel) };
+        }
+        if level >= Level::Avx2 && Level::Avx2.is_supported() {
+            // SAFETY: the CPU supports every feature `run_avx2` enables (checked just above).
+            return unsafe { run_avx2(kernel) };
+        }
+    }
+    let _ = level;
+    kernel.run(Level::Portable)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+unsafe fn run_avx2<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run(Level::Avx2)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512bw,avx512dq,avx2,fma,bmi1,bmi2,lzcnt,popcnt")]
+unsafe fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
+    kernel.run(Level::Avx512)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A small kernel: `a * b + c` over lanes of 8, the shape of the crate's kernels.
+    struct Madd<'a> {
+        a: &'a [f32],
+        b: &'a [f32],
+        c: &'a [f32],
+        out: &'a mut Vec<f32>,
+    }
+
+    impl Kernel for Madd<'_> {
+        type Output = Level;
+        #[inline(always)]
+        fn run(self, level: Level) -> Level {
+            self.out.clear();
+            self.out.extend(
+                self.a
+                    .iter()
+                    .zip(self.b)
+                    .zip(self.c)
+                    .map(|((a, b), c)| a * b + c),
+            );
+            level
+        }
+    }
+
+    #[test]
+    fn every_supported_level_runs_and_gives_the_same_bits() {
+        let n = 1003;
+        let a: Vec<f32> = (0..n).map(|i| (i as f32 * 0.37).sin() * 1e3).collect();
+        let b: Vec<f32> = (0..n).map(|i| (i as f32 * 0.11).cos() / 7.0).collect();
+        let c: Vec<f32> = (0..n).map(|i| 1.0 / (i as f32 + 0.5)).collect();
+        let mut reference = vec![];
+        dispatch(
+            Level::Portable,
+            Madd {
+                a: &a,
+                b: &b,
+                c: &c,
+                out: &mut reference,
+            },
+        );
+        for level in Level::supported() {
+            let mut out = vec![];
+            let ran = dispatch(
+                level,
+                Madd {
+                    a: &a,
+                    b: &b,
+                    c: &c,
+                    out: &mut out,
+                },
+            );
+            assert_eq!(ran, level);
+            let same = out
+                .iter()
+                .zip(&reference)
+                .all(|(x, y)| x.to_bits() == y.to_bits());
+            assert!(same, "{level:?} differs from the portable path");
+        }
+    }
+
+    #[test]
+    fn current_is_supported_and_portable_always_is() {
+        assert!(Level::Portable.is_supported());
+        assert!(Level::current().is_supported());
+        assert_eq!(Level::supported()[0], Level::Portable);
+    }
+}
