@@ -271,18 +271,24 @@ fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
         };
         let (lo, hi) = (axis_cost.lo, axis_cost.hi);
         let (mut nl, mut nr) = (0usize, n);
+        let len = ev.len();
         let mut i = 0;
-        while i < ev.len() {
+        while i < len {
             let key = ev[i] >> 32;
-            let (mut pe, mut pp, mut ps) = (0usize, 0usize, 0usize);
-            while i < ev.len() && ev[i] >> 32 == key {
-                match (ev[i] >> 30) & 3 {
-                    END => pe += 1,
-                    PLANAR => pp += 1,
-                    _ => ps += 1,
-                }
+            // Counted without branching on the kind (END = 0, PLANAR = 1, START = 2): the kinds
+            // of neighbouring events are unpredictable.
+            let (mut group, mut pp, mut ps) = (0usize, 0usize, 0usize);
+            loop {
+                let kind = ((ev[i] >> 30) & 3) as usize;
+                group += 1;
+                pp += kind & 1;
+                ps += kind >> 1;
                 i += 1;
+                if i == len || ev[i] >> 32 != key {
+                    break;
+                }
             }
+            let pe = group - pp - ps;
             nr -= pe + pp;
             let p = unord(key as u32);
             if p > lo && p < hi {
@@ -516,38 +522,41 @@ fn small(
     let mut child_ranges = [[(0usize, 0usize); 3]; 2];
     for c in 0..2 {
         let me = 1u8 << c;
+        // The straddlers' event re-made at the plane: the left child's end, the right's start.
+        let (moved, dropped) = if c == 0 { (END, END) } else { (START, START) };
         for (a, range) in ranges.iter().enumerate() {
             let start = arena.events.len();
             if a == axis && c == 1 {
                 // Straddlers start at the plane, before every other event of the right child.
                 for i in 0..n {
                     if side[i] == 3 {
-                        arena.events.push(event(s, START, local[1][i] as u32));
+                        arena.events.push(event(s, moved, local[1][i] as u32));
                     }
                 }
             }
-            for k in range.0..range.1 {
-                let e = arena.events[k];
+            // Filtered without branching on the side (unpredictable): every event is written
+            // and the write position advances only for kept ones.
+            let mut w = arena.events.len();
+            arena.events.resize(w + (range.1 - range.0), 0);
+            let (src, dst) = arena.events.split_at_mut(w);
+            let dst = &mut dst[..];
+            let mut k_out = 0usize;
+            let split_axis = a == axis;
+            for &e in &src[range.0..range.1] {
                 let i = (e & 0x3fff_ffff) as usize;
                 let sd = side[i];
-                if sd & me == 0 {
-                    continue;
-                }
-                if sd == 3 && a == axis {
-                    // The straddler's bound on the split axis moves to the plane: its end (left)
-                    // or start (right) is re-made there.
-                    let kind = (e >> 30) & 3;
-                    if (c == 0 && kind == END) || (c == 1 && kind == START) {
-                        continue;
-                    }
-                }
-                arena.events.push(at(e, local[c][i]));
+                let drop = split_axis & (sd == 3) & ((e >> 30) & 3 == dropped);
+                let keep = (sd & me != 0) & !drop;
+                dst[k_out] = at(e, local[c][i]);
+                k_out += keep as usize;
             }
+            w += k_out;
+            arena.events.truncate(w);
             if a == axis && c == 0 {
                 // Straddlers end at the plane, after every other event of the left child.
                 for i in 0..n {
                     if side[i] == 3 {
-                        arena.events.push(event(s, END, local[0][i] as u32));
+                        arena.events.push(event(s, moved, local[0][i] as u32));
                     }
                 }
             }
