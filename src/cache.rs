@@ -217,7 +217,7 @@ impl TreeCache {
             std::process::id(),
             TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
         ));
-        let result = std::fs::write(&tmp, encode(key, entry)).and_then(|()| {
+        let result = write_entry(&tmp, key, entry).and_then(|()| {
             std::fs::rename(&tmp, &path)?;
             Ok(path)
         });
@@ -228,8 +228,8 @@ impl TreeCache {
     }
 }
 
-/// The entry's bytes: header, then the five arrays.
-fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
+/// The entry's header (checksum included) and its five arrays, borrowed from the entry.
+fn parts(key: CacheKey, e: &CachedTree) -> (Header, [&[u8]; 5]) {
     let tree = &e.tree;
     let parts: [&[u8]; 5] = [
         bytemuck::cast_slice(&e.mesh_triangles),
@@ -238,7 +238,6 @@ fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
         bytemuck::cast_slice(&tree.nodes),
         bytemuck::cast_slice(&tree.tri_indices),
     ];
-    let payload: usize = parts.iter().map(|p| p.len()).sum();
     let (lo, hi) = tree.root;
     let mut header = Header {
         magic: MAGIC,
@@ -253,13 +252,34 @@ fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
         tri_indices: tree.tri_indices.len() as u64,
         checksum: 0,
     };
-    let mut out = Vec::with_capacity(size_of::<Header>() + payload);
-    out.extend_from_slice(bytemuck::bytes_of(&header));
+    let hashes: Vec<u64> = parts.par_iter().map(|p| part_hash(p)).collect();
+    header.checksum = checksum(
+        &header,
+        &[hashes[0], hashes[1], hashes[2], hashes[3], hashes[4]],
+    );
+    (header, parts)
+}
+
+/// Writes the entry to `path`: the header, then the arrays straight from the entry's vectors.
+fn write_entry(path: &Path, key: CacheKey, e: &CachedTree) -> io::Result<()> {
+    use std::io::Write;
+    let (header, parts) = parts(key, e);
+    let mut file = std::fs::File::create(path)?;
+    file.write_all(bytemuck::bytes_of(&header))?;
+    for p in parts {
+        file.write_all(p)?;
+    }
+    Ok(())
+}
+
+/// The entry's bytes: header, then the five arrays.
+#[cfg(test)]
+fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
+    let (header, parts) = parts(key, e);
+    let mut out = bytemuck::bytes_of(&header).to_vec();
     for p in parts {
         out.extend_from_slice(p);
     }
-    header.checksum = checksum(&header, &parts.map(part_hash));
-    out[..size_of::<Header>()].copy_from_slice(bytemuck::bytes_of(&header));
     out
 }
 
