@@ -7,7 +7,8 @@
 //! five arrays in `bytemuck` layouts (native endianness, which the magic word also checks): the
 //! triangle count of each mesh (`u64`), positions (`[f64; 3]`), triangles (`[u32; 3]`), nodes
 //! ([`KdNode`], 8 bytes) and the leaves' triangle list (`u32`). An entry is trusted only after its
-//! magic, version, key, sizes, checksum (XXH3-64 of the whole entry) and every index
+//! magic, version, key, sizes, checksum (XXH3-64 over the header and each array's hash; arrays are
+//! read straight from the file into their vectors and hashed in 1 MiB pieces, in parallel) and every index
 //! have been checked; [`TreeCache::load`] reports anything else as [`CacheError::Invalid`] and the
 //! caller rebuilds. Entries are written under a unique temporary name and renamed into place, so
 //! concurrent renders sharing one cache never read a half-written file.
@@ -18,13 +19,14 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
+use rayon::prelude::*;
 use thiserror::Error;
 
 use crate::accel::kdtree::{BuildMethod, KdNode, KdTree, MAX_DEPTH};
 
 /// Format version: bump whenever the layout or anything that changes a cached result (the
 /// builders, the OBJ reader) changes.
-pub const CACHE_VERSION: u32 = 1;
+pub const CACHE_VERSION: u32 = 2;
 
 /// `b"WFKDTREE"` read as a native-endian `u64`: a file written on a machine of the other
 /// endianness fails this check.
@@ -56,7 +58,8 @@ pub enum CacheError {
 }
 
 /// The key of an entry: a 128-bit XXH3 hash of the cache version, the crate version, the builder
-/// and its settings, and every mesh's OBJ bytes (length-prefixed, in scene order).
+/// and its settings, and every mesh's OBJ bytes (length and [`part_hash`], hashed in parallel
+/// 1 MiB pieces, in scene order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct CacheKey(pub u128);
 
@@ -71,7 +74,7 @@ impl CacheKey {
         h.update(&(sources.len() as u64).to_le_bytes());
         for s in sources {
             h.update(&(s.len() as u64).to_le_bytes());
-            h.update(s);
+            h.update(&part_hash(s).to_le_bytes());
         }
         CacheKey(h.digest128())
     }
@@ -80,6 +83,21 @@ impl CacheKey {
     pub fn hex(self) -> String {
         format!("{:032x}", self.0)
     }
+}
+
+/// Reads a whole file in parallel 1 MiB pieces (positioned reads, so both cores copy from the page
+/// cache at once).
+pub fn read_parallel(path: &Path) -> io::Result<Vec<u8>> {
+    use std::os::unix::fs::FileExt;
+    let file = std::fs::File::open(path)?;
+    let len = usize::try_from(file.metadata()?.len())
+        .map_err(|_| io::Error::from(io::ErrorKind::OutOfMemory))?;
+    let mut bytes: Vec<u8> = bytemuck::zeroed_vec(len);
+    bytes
+        .par_chunks_mut(PIECE)
+        .enumerate()
+        .try_for_each(|(i, piece)| file.read_exact_at(piece, (i * PIECE) as u64))?;
+    Ok(bytes)
 }
 
 /// What an entry holds: the merged mesh in world coordinates and its tree in the frame centred
@@ -122,7 +140,7 @@ struct Header {
     nodes: u64,
     /// Length of the leaves' triangle list.
     tri_indices: u64,
-    /// XXH3-64 of the whole entry with this field zero.
+    /// [`checksum`]: XXH3-64 of this header with this field zero and of each array's hash.
     checksum: u64,
 }
 
@@ -167,15 +185,26 @@ impl TreeCache {
     /// The entry for `key`: `Ok(None)` when there is none, an error when it exists but cannot
     /// be trusted (the caller rebuilds and overwrites it).
     pub fn load(&self, key: CacheKey) -> Result<Option<CachedTree>, CacheError> {
+        use std::os::unix::fs::FileExt;
         let path = self.path_of(key);
-        let bytes = match std::fs::read(&path) {
-            Ok(b) => b,
+        let file = match std::fs::File::open(&path) {
+            Ok(f) => f,
             Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
             Err(source) => return Err(CacheError::Read { path, source }),
         };
-        decode(&bytes, key)
-            .map(Some)
-            .map_err(|reason| CacheError::Invalid { path, reason })
+        let len = file
+            .metadata()
+            .map_err(|source| CacheError::Read {
+                path: path.clone(),
+                source,
+            })?
+            .len();
+        let read = |offset: u64, out: &mut [u8]| file.read_exact_at(out, offset);
+        match decode_from(&read, len, key) {
+            Ok(entry) => Ok(Some(entry)),
+            Err(Failure::Io(source)) => Err(CacheError::Read { path, source }),
+            Err(Failure::Invalid(reason)) => Err(CacheError::Invalid { path, reason }),
+        }
     }
 
     /// Writes the entry for `key` atomically (unique temporary name, then rename).
@@ -188,7 +217,7 @@ impl TreeCache {
             std::process::id(),
             TEMP_COUNTER.fetch_add(1, Ordering::Relaxed)
         ));
-        let result = std::fs::write(&tmp, encode(key, entry)).and_then(|()| {
+        let result = write_entry(&tmp, key, entry).and_then(|()| {
             std::fs::rename(&tmp, &path)?;
             Ok(path)
         });
@@ -199,8 +228,8 @@ impl TreeCache {
     }
 }
 
-/// The entry's bytes: header, then the five arrays.
-fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
+/// The entry's header (checksum included) and its five arrays, borrowed from the entry.
+fn parts(key: CacheKey, e: &CachedTree) -> (Header, [&[u8]; 5]) {
     let tree = &e.tree;
     let parts: [&[u8]; 5] = [
         bytemuck::cast_slice(&e.mesh_triangles),
@@ -209,7 +238,6 @@ fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
         bytemuck::cast_slice(&tree.nodes),
         bytemuck::cast_slice(&tree.tri_indices),
     ];
-    let payload: usize = parts.iter().map(|p| p.len()).sum();
     let (lo, hi) = tree.root;
     let mut header = Header {
         magic: MAGIC,
@@ -224,33 +252,123 @@ fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
         tri_indices: tree.tri_indices.len() as u64,
         checksum: 0,
     };
-    let mut out = Vec::with_capacity(size_of::<Header>() + payload);
-    out.extend_from_slice(bytemuck::bytes_of(&header));
+    let hashes: Vec<u64> = parts.par_iter().map(|p| part_hash(p)).collect();
+    header.checksum = checksum(
+        &header,
+        &[hashes[0], hashes[1], hashes[2], hashes[3], hashes[4]],
+    );
+    (header, parts)
+}
+
+/// Writes the entry to `path`: the header, then the arrays straight from the entry's vectors.
+fn write_entry(path: &Path, key: CacheKey, e: &CachedTree) -> io::Result<()> {
+    use std::io::Write;
+    let (header, parts) = parts(key, e);
+    let mut file = std::fs::File::create(path)?;
+    file.write_all(bytemuck::bytes_of(&header))?;
+    for p in parts {
+        file.write_all(p)?;
+    }
+    Ok(())
+}
+
+/// The entry's bytes: header, then the five arrays.
+#[cfg(test)]
+fn encode(key: CacheKey, e: &CachedTree) -> Vec<u8> {
+    let (header, parts) = parts(key, e);
+    let mut out = bytemuck::bytes_of(&header).to_vec();
     for p in parts {
         out.extend_from_slice(p);
     }
-    header.checksum = checksum(&out);
-    out[..size_of::<Header>()].copy_from_slice(bytemuck::bytes_of(&header));
     out
 }
 
-/// XXH3-64 of an entry with its checksum field read as zero.
-fn checksum(bytes: &[u8]) -> u64 {
-    let hsize = size_of::<Header>();
-    let mut h = xxhash_rust::xxh3::Xxh3::new();
-    h.update(&bytes[..hsize - 8]);
-    h.update(&[0u8; 8]);
-    h.update(&bytes[hsize..]);
-    h.digest()
+/// Bytes per piece of an array hashed (and read) on its own, in parallel.
+const PIECE: usize = 1 << 20;
+
+/// The hash of one array: XXH3-64 over the XXH3-64 of each [`PIECE`] of its bytes, so the pieces
+/// are read and hashed in parallel.
+fn part_hash(bytes: &[u8]) -> u64 {
+    let pieces: Vec<u64> = bytes
+        .par_chunks(PIECE)
+        .map(xxhash_rust::xxh3::xxh3_64)
+        .collect();
+    xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&pieces))
 }
 
-/// Checks and decodes an entry; the error says which check failed.
-fn decode(bytes: &[u8], key: CacheKey) -> Result<CachedTree, String> {
-    let hsize = size_of::<Header>();
-    if bytes.len() < hsize {
-        return Err(format!("truncated ({} bytes)", bytes.len()));
+/// The entry's checksum: XXH3-64 of its header with the checksum field zero, followed by each
+/// array's [`part_hash`].
+fn checksum(header: &Header, part_hashes: &[u64; 5]) -> u64 {
+    let mut h = *header;
+    h.checksum = 0;
+    let mut x = xxhash_rust::xxh3::Xxh3::new();
+    x.update(bytemuck::bytes_of(&h));
+    x.update(bytemuck::cast_slice(part_hashes));
+    x.digest()
+}
+
+/// Why decoding failed: the file could not be read, or its contents are not a valid entry.
+enum Failure {
+    Io(io::Error),
+    Invalid(String),
+}
+
+impl From<String> for Failure {
+    fn from(reason: String) -> Failure {
+        Failure::Invalid(reason)
     }
-    let h: Header = bytemuck::pod_read_unaligned(&bytes[..hsize]);
+}
+
+impl From<&str> for Failure {
+    fn from(reason: &str) -> Failure {
+        Failure::Invalid(reason.into())
+    }
+}
+
+/// Fills a buffer with the entry's bytes at an offset (a file read, or a copy from memory).
+type Reader<'a> = dyn Fn(u64, &mut [u8]) -> io::Result<()> + Sync + 'a;
+
+/// Reads `n` values of `T` at `offset` straight into their vector, in pieces read and hashed in
+/// parallel; returns them with their [`part_hash`].
+fn read_part<T: Pod + Send>(read: &Reader, offset: u64, n: usize) -> io::Result<(Vec<T>, u64)> {
+    let mut v: Vec<T> = bytemuck::zeroed_vec(n);
+    let pieces = bytemuck::cast_slice_mut::<T, u8>(&mut v)
+        .par_chunks_mut(PIECE)
+        .enumerate()
+        .map(|(i, piece)| {
+            read(offset + (i * PIECE) as u64, piece)?;
+            Ok(xxhash_rust::xxh3::xxh3_64(piece))
+        })
+        .collect::<io::Result<Vec<u64>>>()?;
+    let hash = xxhash_rust::xxh3::xxh3_64(bytemuck::cast_slice(&pieces));
+    Ok((v, hash))
+}
+
+/// Checks and decodes an entry held in memory; the error says which check failed.
+#[cfg(test)]
+fn decode(bytes: &[u8], key: CacheKey) -> Result<CachedTree, String> {
+    let read = |offset: u64, out: &mut [u8]| {
+        let start = offset as usize;
+        bytes
+            .get(start..start + out.len())
+            .map(|b| out.copy_from_slice(b))
+            .ok_or_else(|| io::Error::from(io::ErrorKind::UnexpectedEof))
+    };
+    decode_from(&read, bytes.len() as u64, key).map_err(|f| match f {
+        Failure::Io(e) => e.to_string(),
+        Failure::Invalid(reason) => reason,
+    })
+}
+
+/// Checks and decodes an entry of `len` bytes read through `read`: the header first, then every
+/// array straight into its own vector (in parallel pieces), then the checksum and the indices.
+fn decode_from(read: &Reader, len: u64, key: CacheKey) -> Result<CachedTree, Failure> {
+    let hsize = size_of::<Header>();
+    if len < hsize as u64 {
+        return Err(format!("truncated ({len} bytes)").into());
+    }
+    let mut h = Header::zeroed();
+    read(0, bytemuck::bytes_of_mut(&mut h)).map_err(Failure::Io)?;
     if h.magic != MAGIC {
         return Err("not a wavefront tree cache entry (bad magic)".into());
     }
@@ -258,7 +376,8 @@ fn decode(bytes: &[u8], key: CacheKey) -> Result<CachedTree, String> {
         return Err(format!(
             "format version {} (this build reads {CACHE_VERSION})",
             h.version
-        ));
+        )
+        .into());
     }
     if h.key != [key.0 as u64, (key.0 >> 64) as u64] {
         return Err("stored for another key".into());
@@ -270,56 +389,87 @@ fn decode(bytes: &[u8], key: CacheKey) -> Result<CachedTree, String> {
         (h.nodes, 8),
         (h.tri_indices, 4),
     ];
+    let mut offsets = [0u64; 5];
     let mut payload: u64 = 0;
-    for (n, size) in sizes {
+    for (k, (n, size)) in sizes.into_iter().enumerate() {
+        offsets[k] = hsize as u64 + payload;
         payload = n
             .checked_mul(size)
             .and_then(|b| payload.checked_add(b))
             .ok_or("sizes overflow")?;
     }
-    if bytes.len() as u64 != hsize as u64 + payload {
+    if len != hsize as u64 + payload {
         return Err(format!(
-            "{} bytes where the header announces {}",
-            bytes.len(),
+            "{len} bytes where the header announces {}",
             hsize as u64 + payload
-        ));
+        )
+        .into());
     }
-    let body = &bytes[hsize..];
-    if checksum(bytes) != h.checksum {
+    let count = |k: usize| sizes[k].0 as usize;
+    let (((meshes, positions), indices), (nodes, tri_indices)) = rayon::join(
+        || {
+            rayon::join(
+                || {
+                    rayon::join(
+                        || read_part::<u64>(read, offsets[0], count(0)),
+                        || read_part::<[f64; 3]>(read, offsets[1], count(1)),
+                    )
+                },
+                || read_part::<[u32; 3]>(read, offsets[2], count(2)),
+            )
+        },
+        || {
+            rayon::join(
+                || read_part::<KdNode>(read, offsets[3], count(3)),
+                || read_part::<u32>(read, offsets[4], count(4)),
+            )
+        },
+    );
+    let ((mesh_triangles, h0), (positions, h1)) = (
+        meshes.map_err(Failure::Io)?,
+        positions.map_err(Failure::Io)?,
+    );
+    let (indices, h2) = indices.map_err(Failure::Io)?;
+    let (nodes, h3) = nodes.map_err(Failure::Io)?;
+    let (tri_indices, h4) = tri_indices.map_err(Failure::Io)?;
+    if checksum(&h, &[h0, h1, h2, h3, h4]) != h.checksum {
         return Err("checksum mismatch".into());
     }
-    let mut at = 0usize;
-    let mut take = |n: u64, size: u64| {
-        let len = (n * size) as usize;
-        let s = &body[at..at + len];
-        at += len;
-        s
-    };
-    let mesh_triangles: Vec<u64> = collect(take(sizes[0].0, 8));
-    let positions: Vec<[f64; 3]> = collect(take(sizes[1].0, 24));
-    let indices: Vec<[u32; 3]> = collect(take(sizes[2].0, 12));
-    let nodes: Vec<KdNode> = collect(take(sizes[3].0, 8));
-    let tri_indices: Vec<u32> = collect(take(sizes[4].0, 4));
 
     if mesh_triangles.iter().sum::<u64>() != indices.len() as u64 {
         return Err("mesh triangle counts do not add up".into());
     }
-    if positions.len() > u32::MAX as usize
-        || indices
-            .iter()
-            .flatten()
-            .any(|&i| i as usize >= positions.len())
-    {
-        return Err("vertex index out of range".into());
-    }
-    if !positions.iter().flatten().all(|c| c.is_finite()) || !h.origin.iter().all(|c| c.is_finite())
-    {
-        return Err("non-finite coordinate".into());
-    }
-    if tri_indices.iter().any(|&t| t as usize >= indices.len()) {
-        return Err("triangle index out of range".into());
-    }
-    check_nodes(&nodes, tri_indices.len())?;
+    let (structure, arrays) = rayon::join(
+        || check_nodes(&nodes, tri_indices.len()),
+        || -> Result<(), &str> {
+            if positions.len() > u32::MAX as usize
+                || indices
+                    .par_iter()
+                    .with_min_len(1 << 14)
+                    .any(|t| t.iter().any(|&i| i as usize >= positions.len()))
+            {
+                return Err("vertex index out of range");
+            }
+            if !positions
+                .par_iter()
+                .with_min_len(1 << 14)
+                .all(|p| p.iter().all(|c| c.is_finite()))
+                || !h.origin.iter().all(|c| c.is_finite())
+            {
+                return Err("non-finite coordinate");
+            }
+            if tri_indices
+                .par_iter()
+                .with_min_len(1 << 14)
+                .any(|&t| t as usize >= indices.len())
+            {
+                return Err("triangle index out of range");
+            }
+            Ok(())
+        },
+    );
+    arrays?;
+    structure?;
     let r = h.root;
     Ok(CachedTree {
         origin: DVec3::from_array(h.origin),
@@ -333,13 +483,6 @@ fn decode(bytes: &[u8], key: CacheKey) -> Result<CachedTree, String> {
         },
         indices,
     })
-}
-
-/// Copies bytes (any alignment) into a vector of `T`; `bytes.len()` is a multiple of its size.
-fn collect<T: Pod>(bytes: &[u8]) -> Vec<T> {
-    let mut v = vec![T::zeroed(); bytes.len() / size_of::<T>()];
-    bytemuck::cast_slice_mut::<T, u8>(&mut v).copy_from_slice(bytes);
-    v
 }
 
 /// Structure of a pre-order node array: every right child after its left child (so no cycles),

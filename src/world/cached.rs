@@ -8,6 +8,8 @@
 
 use std::time::Instant;
 
+use rayon::prelude::*;
+
 use super::{SetupTimes, Triangles, World, load_triangles, tree_source};
 use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
 use crate::cache::{CacheKey, CachedTree, TreeCache};
@@ -75,7 +77,7 @@ impl World {
             if !m.path.exists() {
                 return Err(crate::scene::builtin::missing_mesh(&m.path).into());
             }
-            let bytes = std::fs::read(&m.path).map_err(|source| MeshError::Read {
+            let bytes = crate::cache::read_parallel(&m.path).map_err(|source| MeshError::Read {
                 path: m.path.clone(),
                 source,
             })?;
@@ -177,10 +179,15 @@ fn triangles_in(
 ) -> Result<Triangles, LoadError> {
     let vertices: Vec<[f32; 3]> = entry
         .positions
-        .iter()
+        .par_iter()
+        .with_min_len(1 << 14)
         .map(|&p| frame.point(p.into()).to_array())
         .collect();
-    if !vertices.iter().flatten().all(|c| c.is_finite()) {
+    if !vertices
+        .par_iter()
+        .with_min_len(1 << 14)
+        .all(|v| v.iter().all(|c| c.is_finite()))
+    {
         return Err(MeshError::Obj {
             path: scene.meshes[0].path.clone(),
             message: format!(
@@ -202,7 +209,9 @@ fn triangles_in(
             range
         })
         .collect();
-    let tree = entry.tree.reframed(&RenderFrame::at(entry.origin), frame);
+    let tree = entry
+        .tree
+        .into_reframed(&RenderFrame::at(entry.origin), frame);
     let tree = KdAccel::new(tree, &mesh);
     Ok(Triangles {
         mesh,

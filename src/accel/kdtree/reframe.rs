@@ -2,6 +2,8 @@
 //! world coordinates in f64, exactly as a tree file's numbers do ([`KdTree::read_text_in`]), so a
 //! tree built once serves every camera of a camera path.
 
+use rayon::prelude::*;
+
 use super::{KdNode, KdTree};
 use crate::frame::RenderFrame;
 
@@ -9,27 +11,26 @@ impl KdTree {
     /// This tree (built or read in frame `from`) in frame `to`. Triangle lists are unchanged;
     /// wrap it in a [`super::KdAccel`] with the mesh in the new frame to trace it.
     pub fn reframed(&self, from: &RenderFrame, to: &RenderFrame) -> KdTree {
+        self.clone().into_reframed(from, to)
+    }
+
+    /// [`KdTree::reframed`] in place (no copy of the node or triangle arrays; the nodes are moved
+    /// in parallel).
+    pub fn into_reframed(mut self, from: &RenderFrame, to: &RenderFrame) -> KdTree {
         let move_to = |axis: usize, x: f32| to.coordinate(axis, from.world_coordinate(axis, x));
-        let nodes = self
-            .nodes
-            .iter()
-            .map(|&n| {
-                if n.is_leaf() {
-                    n
-                } else {
-                    KdNode::inner(n.axis(), move_to(n.axis(), n.split()), n.right())
+        self.nodes
+            .par_iter_mut()
+            .with_min_len(1 << 14)
+            .for_each(|n| {
+                if !n.is_leaf() {
+                    *n = KdNode::inner(n.axis(), move_to(n.axis(), n.split()), n.right());
                 }
-            })
-            .collect();
+            });
         let (lo, hi) = self.root;
-        KdTree {
-            nodes,
-            tri_indices: self.tri_indices.clone(),
-            root: (
-                std::array::from_fn(|k| move_to(k, lo[k])),
-                std::array::from_fn(|k| move_to(k, hi[k])),
-            ),
-            triangle_count: self.triangle_count,
-        }
+        self.root = (
+            std::array::from_fn(|k| move_to(k, lo[k])),
+            std::array::from_fn(|k| move_to(k, hi[k])),
+        );
+        self
     }
 }

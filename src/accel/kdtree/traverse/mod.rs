@@ -47,6 +47,7 @@ mod single;
 mod visit;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use super::overlap::Aabb;
 use super::{KdTree, TriHit, exact_root};
@@ -82,7 +83,8 @@ impl KdAccel {
     pub fn new(tree: KdTree, mesh: &TriangleMesh) -> KdAccel {
         let tris = tree
             .tri_indices
-            .iter()
+            .par_iter()
+            .with_min_len(1 << 14)
             .map(|&k| {
                 let idx = mesh.indices.get(k as usize).copied().unwrap_or([0; 3]);
                 idx.map(|i| mesh.vertices.get(i as usize).copied().unwrap_or([0.0; 3]))
