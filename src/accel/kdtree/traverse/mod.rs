@@ -39,6 +39,7 @@
 //! near child of a closest-hit packet each lane finishes that subtree with the single-ray loop),
 //! so results are bit-identical to the single-ray queries.
 
+mod bundle;
 mod hit4;
 mod interval;
 mod packet;
@@ -53,6 +54,8 @@ use super::{KdTree, TriHit, exact_root};
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
 use crate::scene::TriangleTest;
+use crate::simd::Level;
+pub use bundle::BundleCounts;
 use visit::{Closest, Occluded};
 
 /// Rays per packet.
@@ -169,7 +172,23 @@ impl KdAccel {
         out: &mut [bool],
     ) {
         assert!(out.len() == origins.len());
-        self.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| out[i] = o);
+        bundle::occluded_batch(self, origins, dirs, t_max, out);
+    }
+
+    /// [`KdAccel::intersect_occluded_batch`] with its light-rooted bundles traced at SIMD level
+    /// `level` (or the best supported one below it), counting their work: for tests (every
+    /// level gives the same answers) and measurements.
+    pub fn intersect_occluded_batch_counted(
+        &self,
+        level: Level,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out: &mut [bool],
+    ) -> BundleCounts {
+        let mut counts = BundleCounts::default();
+        bundle::occluded_batch_at(level, self, origins, dirs, t_max, out, &mut counts);
+        counts
     }
 
     /// One ray's query `V` with the triangle test chosen at run time.
