@@ -58,19 +58,13 @@ const ROUND: f32 = 1.0 / (1 << 20) as f32;
 /// Batches with fewer bundle-able rays than this go through the packet path as a whole.
 const MIN_BUNDLED: usize = 32;
 
-/// What one batch ray needs for bundling, computed once.
+/// What grouping needs of one bundled ray.
 #[derive(Clone, Copy)]
 struct Prep {
-    /// The original ray's watertight data (origin, axis permutation, shear).
-    wt: WatertightRay,
-    /// The original ray's `t_max`.
-    t_max: f32,
-    /// `o − A`: the lane's direction from the apex.
-    rev: [f32; 3],
-    /// World-space slack of the lane (see the module docs).
-    grow: f32,
     /// Index of the ray in the batch.
     ray: u32,
+    /// The direction's components on the face's two other axes (`d[kx]`, `d[ky]`): the sort key.
+    uv: [f32; 2],
 }
 
 /// Occlusion of every ray of the batch into `out` (see the module docs); the answers are those
@@ -190,28 +184,15 @@ struct BatchKernel<'a, C> {
     count: &'a mut C,
 }
 
-/// The bundles of a batch, structure-of-arrays: bundle `b`'s lane `l` at `b · LANES + l` (lanes
-/// past a bundle's rays repeat its first ray and are masked off). Written once for the batch,
-/// so each bundle's lane loads read memory written long before (no store-forwarding stalls).
-#[derive(Default)]
-struct Soa {
-    /// `o − A` per axis.
-    rev: [Vec<f32>; 3],
-    /// World-space slack.
-    grow: Vec<f32>,
-    /// Original origin permuted by the bundle's axes: `o[kx]`, `o[ky]`, `o[kz]`.
-    o: [Vec<f32>; 3],
-    /// Shear `sx`.
-    sx: Vec<f32>,
-    /// Shear `sy`.
-    sy: Vec<f32>,
-    /// Scale `sz`.
-    sz: Vec<f32>,
-    /// Original `t_max`.
-    t_max: Vec<f32>,
-    /// Index into the preps.
-    prep: Vec<u32>,
-}
+/// Rows of a bundle's block of lanes (see [`BatchKernel::trace`]): the original rays' origins
+/// and directions per axis, and `t_max`.
+const ROW_O: usize = 0;
+/// See [`ROW_O`].
+const ROW_D: usize = 3;
+/// See [`ROW_O`].
+const ROW_T_MAX: usize = 6;
+/// Rows per bundle.
+const ROWS: usize = 7;
 
 /// One bundle: its apex, shared axis permutation and number of rays.
 #[derive(Clone, Copy)]
@@ -259,13 +240,24 @@ impl<C: Count> BatchKernel<'_, C> {
             if tm.is_nan() || tm <= 0.0 {
                 continue;
             }
-            let Some(wt) = WatertightRay::new(o, d) else {
-                continue;
+            // The watertight test's axes (as `WatertightRay::new` picks them): the face.
+            let a = d.abs();
+            let kz = if a.x >= a.y && a.x >= a.z {
+                0
+            } else if a.y >= a.z {
+                1
+            } else {
+                2
             };
+            let swap = d[kz] < 0.0;
+            let kx = (kz + 1 + usize::from(swap)) % 3;
+            let ky = (kz + 2 - usize::from(swap)) % 3;
             let far = o + d * tm;
             let length = (o - far).abs().max_element();
             let mut apex = None;
-            if far.is_finite() && length > 0.0 {
+            // Far from overflow, so `o − A`, the far end and the slack are finite.
+            let sane = |v: Vec3| v.abs().max_element() < 1e30;
+            if sane(o) && sane(far) && sane(d * tm) && length > 0.0 {
                 apex = apexes
                     .iter()
                     .position(|&a| (far - a).abs().max_element() <= APEX_TOL * length);
@@ -278,31 +270,10 @@ impl<C: Count> BatchKernel<'_, C> {
                 fallback.push(i as u32);
                 continue;
             };
-            let a = apexes[k];
-            let rev = o - a;
-            // The single ray's δ (from its own origin), the far end's distance from the apex,
-            // and the rounding of `far`, `o − A` and the `reach` itself.
-            let reach = (Vec3::from_array(accel.root.0) - o)
-                .abs()
-                .max((Vec3::from_array(accel.root.1) - o).abs())
-                .max_element();
-            let scale = o.abs().max_element() + a.abs().max_element() + tm * d.abs().max_element();
-            let grow = DELTA * reach * (1.0 + ROUND)
-                + (far - a).abs().max_element()
-                + ROUND * scale
-                + f32::MIN_POSITIVE;
-            if !(grow.is_finite() && rev.is_finite()) {
-                fallback.push(i as u32);
-                continue;
-            }
-            let face = wt.kz * 2 + usize::from(wt.kx != (wt.kz + 1) % 3);
-            groups.push((k * 6 + face) as u8);
+            groups.push((k * 6 + kz * 2 + usize::from(swap)) as u8);
             preps.push(Prep {
-                wt,
-                t_max: tm,
-                rev: rev.to_array(),
-                grow,
                 ray: i as u32,
+                uv: [d[kx], d[ky]],
             });
         }
         if preps.len() < MIN_BUNDLED {
@@ -319,9 +290,12 @@ impl<C: Count> BatchKernel<'_, C> {
             out[i] = accel.intersect_occluded(origins[i], dirs[i], t_max[i]);
         }
         let order = sort_by_direction(&preps, &groups, w);
-        // Cut into bundles and lay their lanes out.
+        // Cut into bundles of one group and lay their lanes out, structure-of-arrays: bundle
+        // `b`'s row `r`, lane `l` at `(b · ROWS + r) · LANES + l` (lanes past a bundle's rays
+        // repeat its first ray and are masked off). Written once for the batch, so each bundle's
+        // lane loads read memory written long before (no store-forwarding stalls).
         let mut bundles: Vec<BundleInfo> = Vec::with_capacity(preps.len() / w + 6 * MAX_APEXES);
-        let mut soa = Soa::default();
+        let mut starts: Vec<u32> = Vec::with_capacity(preps.len() / w + 6 * MAX_APEXES);
         let mut start = 0;
         while start < order.len() {
             let g = groups[order[start] as usize];
@@ -329,46 +303,70 @@ impl<C: Count> BatchKernel<'_, C> {
             while end < order.len() && end - start < w && groups[order[end] as usize] == g {
                 end += 1;
             }
-            let first = &preps[order[start] as usize].wt;
-            let k = [first.kx.min(2), first.ky.min(2), first.kz.min(2)];
-            for l in 0..w {
-                let j = order[start + l.min(end - start - 1)];
-                let p = &preps[j as usize];
-                let o = p.wt.origin.to_array();
-                for a in 0..3 {
-                    soa.rev[a].push(p.rev[a]);
-                    soa.o[a].push(o[k[a]]);
-                }
-                soa.grow.push(p.grow);
-                soa.sx.push(p.wt.sx);
-                soa.sy.push(p.wt.sy);
-                soa.sz.push(p.wt.sz);
-                soa.t_max.push(p.t_max);
-                soa.prep.push(j);
-            }
+            let (kz, swap) = (g as usize % 6 / 2, g % 2 == 1);
+            let kx = (kz + 1 + usize::from(swap)) % 3;
+            let ky = (kz + 2 - usize::from(swap)) % 3;
             bundles.push(BundleInfo {
                 apex: g / 6,
-                k: k.map(|x| x as u8),
+                k: [kx as u8, ky as u8, kz as u8],
                 len: (end - start) as u8,
             });
+            starts.push(start as u32);
             start = end;
         }
-        let mut stack = vec![Entry::<V>::empty(); MAX_DEPTH + 1];
+        let mut block = vec![0.0f32; bundles.len() * ROWS * w];
+        let mut lane_ray = vec![0u32; bundles.len() * w];
+        for (b, (info, &start)) in bundles.iter().zip(&starts).enumerate() {
+            let rows = &mut block[b * ROWS * w..(b + 1) * ROWS * w];
+            for l in 0..w {
+                let j = order[start as usize + l.min(info.len as usize - 1)];
+                let ray = preps[j as usize].ray as usize;
+                let (o, d) = (origins[ray], dirs[ray]);
+                for a in 0..3 {
+                    rows[(ROW_O + a) * w + l] = o[a];
+                    rows[(ROW_D + a) * w + l] = d[a];
+                }
+                rows[ROW_T_MAX * w + l] = t_max[ray];
+                lane_ray[b * w + l] = ray as u32;
+            }
+        }
+        let empty = Entry {
+            t0: V::splat(0.0),
+            t1: V::splat(0.0),
+            node: 0,
+            mask: 0,
+        };
+        // Pending far children: one per tree level at most.
+        let mut stack = vec![empty; MAX_DEPTH + 1];
         if std::env::var_os("NOTRACE").is_some_and(|v| v == "1") { return; }
+        let rays = Rays {
+            origins,
+            dirs,
+            t_max,
+        };
         for (b, info) in bundles.iter().enumerate() {
             let apex = apexes[info.apex as usize].to_array();
-            let hit = accel.bundle::<V, C>(apex, info, &soa, b * w, &preps, &mut stack, count);
-            for l in 0..info.len as usize {
+            let rows = &block[b * ROWS * w..(b + 1) * ROWS * w];
+            let lanes = &lane_ray[b * w..(b + 1) * w];
+            let hit = accel.bundle::<V, C>(apex, info, rows, lanes, &rays, &mut stack, count);
+            for (l, &ray) in lanes.iter().enumerate().take(info.len as usize) {
                 if hit & (1 << l) != 0 {
-                    out[preps[soa.prep[b * w + l] as usize].ray as usize] = true;
+                    out[ray as usize] = true;
                 }
             }
         }
     }
 }
 
+/// The batch's columns (for the rare lanes that take the scalar triangle test).
+struct Rays<'a> {
+    origins: &'a [Vec3],
+    dirs: &'a [Vec3],
+    t_max: &'a [f32],
+}
+
 /// The order to bundle `preps` in: by group, then along a Morton curve of the direction's shear
-/// `(sx, sy)` on a grid over the group's range with about `w / 4` rays per cell (a stable
+/// (`d[kx]`, `d[ky]`) on a grid over the group's range with about `w / 4` rays per cell (a stable
 /// counting sort, so equal cells keep the batch's order).
 #[inline(always)]
 fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
@@ -379,7 +377,7 @@ fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
     for (p, &g) in preps.iter().zip(groups) {
         let g = g as usize;
         size[g] += 1;
-        for (k, s) in [p.wt.sx, p.wt.sy].into_iter().enumerate() {
+        for (k, &s) in p.uv.iter().enumerate() {
             lo[g][k] = lo[g][k].min(s);
             hi[g][k] = hi[g][k].max(s);
         }
@@ -393,18 +391,21 @@ fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
         bits[g] = (cells.next_power_of_two().trailing_zeros().div_ceil(2)).min(6);
         base[g + 1] = base[g] + if size[g] > 0 { 1 << (2 * bits[g]) } else { 0 };
     }
-    let key = |p: &Prep, g: usize| -> usize {
-        let b = bits[g];
-        let cell = |k: usize, s: f32| -> u32 {
+    // Cells per unit of shear, per group and axis (0 for a group of one direction).
+    let mut scale = [[0.0f32; 2]; GROUPS];
+    for g in 0..GROUPS {
+        for k in 0..2 {
             let span = hi[g][k] - lo[g][k];
-            let x = if span > 0.0 {
-                (s - lo[g][k]) / span
-            } else {
-                0.0
-            };
-            ((x * (1 << b) as f32) as u32).min((1 << b) - 1)
-        };
-        base[g] + morton2(cell(0, p.wt.sx), cell(1, p.wt.sy)) as usize
+            if span > 0.0 {
+                scale[g][k] = (1u32 << bits[g]) as f32 / span;
+            }
+        }
+    }
+    let key = |p: &Prep, g: usize| -> usize {
+        let top = (1u32 << bits[g]) - 1;
+        let cx = (((p.uv[0] - lo[g][0]) * scale[g][0]) as u32).min(top);
+        let cy = (((p.uv[1] - lo[g][1]) * scale[g][1]) as u32).min(top);
+        base[g] + morton2(cx, cy) as usize
     };
     let mut counts = vec![0u32; base[GROUPS] + 1];
     let keys: Vec<u32> = preps
@@ -453,18 +454,6 @@ struct Entry<V> {
     mask: u32,
 }
 
-impl<V: Wide> Entry<V> {
-    #[inline(always)]
-    fn empty() -> Entry<V> {
-        Entry {
-            t0: V::splat(0.0),
-            t1: V::splat(0.0),
-            node: 0,
-            mask: 0,
-        }
-    }
-}
-
 /// How the lanes of a bundle move along an axis (their reversed directions' signs).
 #[derive(Clone, Copy, PartialEq, Eq)]
 enum Sign {
@@ -501,23 +490,68 @@ struct Lanes<V: Wide> {
 }
 
 impl KdAccel {
-    /// Traces one bundle, lanes `at..at + LANES` of `soa`. Returns the mask of occluded lanes.
+    /// Traces one bundle from its block of lanes `rows` (see [`ROW_O`]); `lanes` are its
+    /// lanes' rays. Returns the mask of occluded lanes.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn bundle<V: Wide, C: Count>(
         &self,
         apex: [f32; 3],
         info: &BundleInfo,
-        soa: &Soa,
-        at: usize,
-        preps: &[Prep],
+        rows: &[f32],
+        lanes: &[u32],
+        rays: &Rays<'_>,
         stack: &mut [Entry<V>],
         count: &mut C,
     ) -> u32 {
         let w = V::LANES;
-        let grow = V::load(&soa.grow[at..at + w]);
-        let (big, small) = (V::splat(f32::MAX), V::splat(-f32::MAX));
+        let o = [
+            V::load(&rows[ROW_O * w..]),
+            V::load(&rows[(ROW_O + 1) * w..]),
+            V::load(&rows[(ROW_O + 2) * w..]),
+        ];
+        let d = [
+            V::load(&rows[ROW_D * w..]),
+            V::load(&rows[(ROW_D + 1) * w..]),
+            V::load(&rows[(ROW_D + 2) * w..]),
+        ];
+        let t_max = V::load(&rows[ROW_T_MAX * w..]);
+        let k = info.k.map(|x| (x as usize).min(2));
         let zero = V::splat(0.0);
+        // The watertight shear, as `WatertightRay::new` computes it; a lane where it is not
+        // finite can hit nothing (the single ray's `None`).
+        let dz = d[k[2]];
+        let sz = V::splat(1.0).div(dz);
+        let sx = d[k[0]].div(dz);
+        let sy = d[k[1]].div(dz);
+        let valid = V::and(
+            V::and(V::eq(sz.sub(sz), zero), V::eq(sx.sub(sx), zero)),
+            V::eq(sy.sub(sy), zero),
+        );
+        // Each lane's slack (see the module docs): the single ray's δ (from its own origin),
+        // the far end's distance from the apex, and the rounding of the far end, `o − A` and
+        // the reach itself.
+        let mut reach = zero;
+        let mut off = zero;
+        let mut o_max = zero;
+        let mut d_max = zero;
+        for a in 0..3 {
+            let r0 = V::splat(self.root.0[a]).sub(o[a]).abs();
+            let r1 = V::splat(self.root.1[a]).sub(o[a]).abs();
+            reach = reach.max(r0.max(r1));
+            let far = o[a].add(d[a].mul(t_max));
+            off = off.max(far.sub(V::splat(apex[a])).abs());
+            o_max = o_max.max(o[a].abs());
+            d_max = d_max.max(d[a].abs());
+        }
+        let apex_max = apex.iter().fold(0.0f32, |m, x| m.max(x.abs()));
+        let scale = o_max.add(V::splat(apex_max)).add(t_max.mul(d_max));
+        let grow = V::splat(DELTA * (1.0 + ROUND))
+            .mul(reach)
+            .add(off)
+            .add(V::splat(ROUND).mul(scale))
+            .add(V::splat(f32::MIN_POSITIVE));
+        let (big, small) = (V::splat(f32::MAX), V::splat(-f32::MAX));
         let mut t0 = zero;
         let mut t1 = V::splat(1.0);
         let mut inv = [zero; 3];
@@ -530,7 +564,8 @@ impl KdAccel {
             (1u32 << info.len) - 1
         };
         for a in 0..3 {
-            let i = V::splat(1.0).div(V::load(&soa.rev[a][at..at + w])).max(small).min(big);
+            let rev = o[a].sub(V::splat(apex[a]));
+            let i = V::splat(1.0).div(rev).max(small).min(big);
             let s = grow.mul(i.abs()).min(big);
             inv[a] = i;
             slack[a] = s;
@@ -549,7 +584,8 @@ impl KdAccel {
             t0 = t0.max(ta.min(tb).sub(s));
             t1 = t1.min(ta.max(tb).add(s));
         }
-        let mask = V::bits(V::le(t0, t1.mul(V::splat(HI)))) & filled;
+        let entered = V::and(V::le(t0, t1.mul(V::splat(HI))), valid);
+        let mask = V::bits(entered) & filled;
         count.bundle(info.len as u32);
         if mask == 0 {
             return 0;
@@ -559,21 +595,19 @@ impl KdAccel {
             slack,
             pos,
             sign,
-            o: [V::load(&soa.o[0][at..at + w]), V::load(&soa.o[1][at..at + w]), V::load(&soa.o[2][at..at + w])],
-            sx: V::load(&soa.sx[at..at + w]),
-            sy: V::load(&soa.sy[at..at + w]),
-            sz: V::load(&soa.sz[at..at + w]),
-            t_max: V::load(&soa.t_max[at..at + w]),
+            o: [o[k[0]], o[k[1]], o[k[2]]],
+            sx,
+            sy,
+            sz,
+            t_max,
         };
-        let k = info.k.map(|x| (x as usize).min(2));
         let start = Entry {
             t0,
             t1,
             node: 0,
             mask,
         };
-        let lane_prep = &soa.prep[at..at + w];
-        self.walk_bundle(apex, k, &ln, preps, lane_prep, start, stack, count)
+        self.walk_bundle(apex, k, &ln, rays, lanes, start, stack, count)
     }
 
     /// The bundle traversal from `start` (see the module docs); returns the occluded lanes.
@@ -584,8 +618,8 @@ impl KdAccel {
         apex: [f32; 3],
         k: [usize; 3],
         ln: &Lanes<V>,
-        preps: &[Prep],
-        lane_prep: &[u32],
+        rays: &Rays<'_>,
+        lanes: &[u32],
         start: Entry<V>,
         stack: &mut [Entry<V>],
         count: &mut C,
@@ -647,6 +681,7 @@ impl KdAccel {
                     (above, below)
                 };
                 if near.mask != 0 && far.mask != 0 {
+                    // (Never full: one entry per level of a tree at most `MAX_DEPTH` deep.)
                     if sp < stack.len() {
                         stack[sp] = far;
                         sp += 1;
@@ -668,7 +703,7 @@ impl KdAccel {
                     count.leaf(tris.len() as u32, live.count_ones());
                     for tri in tris {
                         count.tri();
-                        let h = tri_hits(ln, k, tri, live, preps, lane_prep);
+                        let h = tri_hits(ln, k, tri, live, rays, lanes);
                         if h != 0 {
                             hit |= h;
                             live &= !h;
@@ -708,8 +743,8 @@ fn tri_hits<V: Wide>(
     k: [usize; 3],
     tri: &[[f32; 3]; 3],
     live: u32,
-    preps: &[Prep],
-    lane_prep: &[u32],
+    rays: &Rays<'_>,
+    lanes: &[u32],
 ) -> u32 {
     let [p0, p1, p2] = tri;
     let (kx, ky, kz) = (k[0], k[1], k[2]);
@@ -759,8 +794,10 @@ fn tri_hits<V: Wide>(
     while z != 0 {
         let l = z.trailing_zeros() as usize;
         z &= z - 1;
-        let p = &preps[lane_prep[l] as usize];
-        if p.wt.intersect(*p0, *p1, *p2, p.t_max).is_some() {
+        let r = lanes[l] as usize;
+        let hit = WatertightRay::new(rays.origins[r], rays.dirs[r])
+            .and_then(|ray| ray.intersect(*p0, *p1, *p2, rays.t_max[r]));
+        if hit.is_some() {
             hits |= 1 << l;
         }
     }
