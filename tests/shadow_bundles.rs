@@ -50,7 +50,12 @@ fn single(accel: &KdAccel, rays: &ShadowRays) -> Vec<bool> {
 }
 
 /// The batch query in chunks of `chunk` rays at `level`, with the work counts.
-fn batched(accel: &KdAccel, rays: &ShadowRays, level: Level, chunk: usize) -> (Vec<bool>, BundleCounts) {
+fn batched(
+    accel: &KdAccel,
+    rays: &ShadowRays,
+    level: Level,
+    chunk: usize,
+) -> (Vec<bool>, BundleCounts) {
     let n = rays.origin.len();
     let mut out = vec![false; n];
     let counts: Vec<BundleCounts> = out
@@ -89,7 +94,10 @@ fn bundles_match_single_rays_on_every_sibenik_shadow_ray() {
     assert!(n > 100_000, "only {n} shadow rays");
     let want = single(&accel, &rays);
     let occluded = want.iter().filter(|&&o| o).count();
-    assert!(occluded > n / 20 && occluded < n / 2, "{occluded} of {n} occluded");
+    assert!(
+        occluded > n / 20 && occluded < n / 2,
+        "{occluded} of {n} occluded"
+    );
     for level in Level::supported() {
         for chunk in [1024, 4096, 1000] {
             let (got, c) = batched(&accel, &rays, level, chunk);
@@ -119,8 +127,8 @@ fn bundles_match_single_rays_on_rays_grazing_sibenik_edges() {
     };
     let tris = world.triangles().expect("a mesh");
     let mesh = tris.mesh();
-    let light = world.lights()[0].clone();
-    let mut rng = Rng(0x5bad_9e5);
+    let light = world.lights()[0];
+    let mut rng = Rng(0x05ba_d9e5);
     let (mut o, mut d, mut tm) = (vec![], vec![], vec![]);
     let n = 120_000;
     while o.len() < n {
@@ -178,7 +186,12 @@ fn time_bundles() {
         return;
     };
     let n = rays.origin.len();
-    let env = |k: &str, d: usize| std::env::var(k).ok().and_then(|c| c.parse().ok()).unwrap_or(d);
+    let env = |k: &str, d: usize| {
+        std::env::var(k)
+            .ok()
+            .and_then(|c| c.parse().ok())
+            .unwrap_or(d)
+    };
     let (chunk, reps) = (env("CHUNK", 1024), env("REPS", 5));
     let time = |f: &dyn Fn(&mut [bool])| {
         let mut best = u64::MAX;

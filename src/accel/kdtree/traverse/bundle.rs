@@ -7,7 +7,8 @@
 //! root box; writes one occlusion bit per ray, in the batch's order.
 //!
 //! **Grouping.** A ray's far end `F = o + t_max·d` is compared with the batch's apexes (the far
-//! ends met so far, at most [`MAX_APEXES`]); a ray within [`APEX_TOL`] (relative) of one joins it.
+//! ends met so far, at most [`MAX_APEXES`]); a ray within [`APEX_TOL`] of one (relative to its
+//! length or to the length of the ray that set it) joins it.
 //! Rays of one apex are grouped by the watertight test's axis permutation (the cube face of their
 //! direction, so every lane of a bundle reads the same vertex components) and sorted along a
 //! Morton curve of their direction on that face (a counting sort over a grid sized to the group),
@@ -30,12 +31,16 @@
 //! same order (Rust never fuses them), and the lanes that land on an edge (`u`, `v` or `w` zero)
 //! take the scalar test itself with its `f64` fallback. A lane is occluded exactly when some
 //! triangle of a leaf it visits passes that test, which — visiting every leaf the single ray
-//! could hit in — is the single ray's answer; the test `bundles_match_single_rays` and the
-//! Sibenik tests check it. A bundle stops when all its lanes are occluded.
+//! could hit in — is the single ray's answer (the tests below and `tests/shadow_bundles.rs`, on
+//! every Sibenik shadow ray and on rays grazing its edges, check it). A bundle stops when all its
+//! lanes are occluded.
 //!
-//! **Lanes.** The lane code is plain safe Rust over `[f32; W]` arrays, inlined into
-//! [`crate::simd::dispatch`]'s per-level functions: `W = 16` with AVX-512, 8 with AVX2 and on the
-//! portable path. Every level computes the same bits, and the answers do not depend on `W`.
+//! **Lanes.** The lane code is written once over [`Wide`] ([`crate::simd`]'s `wide`: one
+//! instruction per operation, each with the scalar operation's semantics) and inlined into
+//! [`dispatch_wide`]'s per-level functions: 16 lanes with AVX-512, 8 with AVX2 and on the portable
+//! path. No closure may touch a [`Wide`] value in the hot loop (a closure is not compiled with the
+//! dispatcher's target features, so its lane operations would become calls). Every level gives
+//! the same answers (`tests/shadow_bundles.rs` checks each one on Sibenik).
 
 use glam::Vec3;
 
@@ -48,7 +53,7 @@ use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
 
 /// Most distinct far ends (lights) one batch bundles rays toward; rays toward others take the
 /// packet path.
-const MAX_APEXES: usize = 4;
+const MAX_APEXES: usize = 16;
 /// A ray joins an apex when its far end is within this fraction of its length (L∞) of it. Shadow
 /// rays end `γ(3)·length` plus the light's rounding short of the light, far inside this.
 const APEX_TOL: f32 = 1.0 / (1 << 16) as f32;
@@ -76,7 +81,15 @@ pub(super) fn occluded_batch(
     t_max: &[f32],
     out: &mut [bool],
 ) {
-    occluded_batch_at(Level::current(), accel, origins, dirs, t_max, out, &mut NoCount);
+    occluded_batch_at(
+        Level::current(),
+        accel,
+        origins,
+        dirs,
+        t_max,
+        out,
+        &mut NoCount,
+    );
 }
 
 /// [`occluded_batch`] at a chosen SIMD level, counting work into `count`.
@@ -230,6 +243,8 @@ impl<C: Count> BatchKernel<'_, C> {
         let n = origins.len();
         out.fill(false);
         let mut apexes: Vec<Vec3> = Vec::with_capacity(MAX_APEXES);
+        // Length of the ray whose far end set each apex.
+        let mut founders: Vec<f32> = Vec::with_capacity(MAX_APEXES);
         let mut preps: Vec<Prep> = Vec::with_capacity(n);
         // Group of each prep: apex · 6 + face.
         let mut groups: Vec<u8> = Vec::with_capacity(n);
@@ -256,13 +271,17 @@ impl<C: Count> BatchKernel<'_, C> {
             let length = (o - far).abs().max_element();
             let mut apex = None;
             // Far from overflow, so `o − A`, the far end and the slack are finite.
-            let sane = |v: Vec3| v.abs().max_element() < 1e30;
+            let sane = |v: Vec3| v.is_finite() && v.abs().max_element() < 1e30;
             if sane(o) && sane(far) && sane(d * tm) && length > 0.0 {
+                // Within the tolerance of this ray's length or of the one that set the apex
+                // (a short ray toward the light ends as near it as a long one, in world units).
                 apex = apexes
                     .iter()
-                    .position(|&a| (far - a).abs().max_element() <= APEX_TOL * length);
+                    .zip(&founders)
+                    .position(|(&a, &f)| (far - a).abs().max_element() <= APEX_TOL * length.max(f));
                 if apex.is_none() && apexes.len() < MAX_APEXES {
                     apexes.push(far);
+                    founders.push(length);
                     apex = Some(apexes.len() - 1);
                 }
             }
@@ -279,9 +298,7 @@ impl<C: Count> BatchKernel<'_, C> {
         if preps.len() < MIN_BUNDLED {
             // Too few to bundle: the packet path for the whole batch.
             count.fallback(n as u32);
-            accel.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| {
-                out[i] = o
-            });
+            accel.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| out[i] = o);
             return;
         }
         count.fallback(fallback.len() as u32);
@@ -338,7 +355,6 @@ impl<C: Count> BatchKernel<'_, C> {
         };
         // Pending far children: one per tree level at most.
         let mut stack = vec![empty; MAX_DEPTH + 1];
-        if std::env::var_os("NOTRACE").is_some_and(|v| v == "1") { return; }
         let rays = Rays {
             origins,
             dirs,
@@ -802,4 +818,173 @@ fn tri_hits<V: Wide>(
         }
     }
     hits
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::BundleCounts;
+    use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
+    use crate::geometry::triangle::WatertightRay;
+    use crate::mesh::TriangleMesh;
+    use crate::sampling::Rng;
+    use crate::simd::Level;
+
+    /// Uniform in `[-1, 1)³`.
+    fn vec(rng: &mut Rng) -> Vec3 {
+        Vec3::new(
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+            rng.range(-1.0, 1.0),
+        )
+    }
+
+    /// Random triangles with some lying in axis planes through the lights' coordinates, so split
+    /// planes pass through the apexes.
+    fn soup(rng: &mut Rng, lights: &[Vec3]) -> TriangleMesh {
+        let (mut v, mut idx) = (vec![], vec![]);
+        for k in 0..3000u32 {
+            let c = vec(rng) * 4.0;
+            let mut tri = [c, c + vec(rng) * 0.5, c + vec(rng) * 0.5];
+            if k % 5 == 0 {
+                let axis = (k / 5 % 3) as usize;
+                let plane = lights[k as usize % lights.len()][axis];
+                for p in &mut tri {
+                    p[axis] = plane;
+                }
+            }
+            v.extend(tri.map(|p| p.to_array()));
+            idx.push([3 * k, 3 * k + 1, 3 * k + 2]);
+        }
+        TriangleMesh::new(v, idx)
+    }
+
+    #[test]
+    fn bundles_match_single_rays_with_several_lights_and_bad_rays() {
+        let mut rng = Rng(0xb0d1e5);
+        let lights = [
+            Vec3::new(0.3, 1.7, -0.2),
+            Vec3::new(-2.0, 0.5, 1.0),
+            Vec3::new(0.0, 0.0, 0.0),
+        ];
+        let mesh = soup(&mut rng, &lights);
+        for method in [BuildMethod::Sah, BuildMethod::Midpoint] {
+            let tree = KdAccel::new(KdTree::build(&mesh, method), &mesh);
+            let (mut o, mut d, mut tm) = (vec![], vec![], vec![]);
+            for i in 0..20_000 {
+                // Shadow rays as the shade stage makes them, hit-major over the lights, with
+                // a few of every kind of bad ray and rays ending nowhere in particular.
+                let origin = vec(&mut rng) * 5.0;
+                let light = lights[i % lights.len()];
+                let to = light - origin;
+                let (mut dir, mut t) = (to.normalize(), to.length() * (1.0 - 1e-6));
+                match i % 97 {
+                    0 => t = f32::NAN,
+                    1 => t = 0.0,
+                    2 => dir = Vec3::ZERO,
+                    3 => dir = Vec3::new(f32::NAN, 0.0, 1.0),
+                    4 => dir = vec(&mut rng),
+                    5 => dir[i / 97 % 3] = 0.0,
+                    _ => {}
+                }
+                o.push(origin);
+                d.push(dir);
+                tm.push(t);
+            }
+            let want: Vec<bool> = (0..o.len())
+                .map(|i| tree.intersect_occluded(o[i], d[i], tm[i]))
+                .collect();
+            let occluded = want.iter().filter(|&&x| x).count();
+            assert!(occluded > o.len() / 10 && occluded < o.len() * 9 / 10);
+            for level in Level::supported() {
+                for chunk in [4096, 1000, 37, 5] {
+                    let mut got = vec![false; o.len()];
+                    let mut total = BundleCounts::default();
+                    for (c, out) in got.chunks_mut(chunk).enumerate() {
+                        let r = c * chunk..c * chunk + out.len();
+                        let counts = tree.intersect_occluded_batch_counted(
+                            level,
+                            &o[r.clone()],
+                            &d[r.clone()],
+                            &tm[r],
+                            out,
+                        );
+                        total.bundles += counts.bundles;
+                        total.fallback += counts.fallback;
+                    }
+                    for i in 0..o.len() {
+                        assert_eq!(
+                            got[i], want[i],
+                            "{level:?} {method:?} chunk {chunk} ray {i}"
+                        );
+                    }
+                    if chunk >= 1000 {
+                        assert!(total.bundles > 0, "{level:?}: no bundles");
+                        // Only the rays that end nowhere in particular go through packets.
+                        assert!(total.fallback < o.len() as u64 * 6 / 100, "{total:?}");
+                    } else if chunk == 5 {
+                        assert_eq!(total.bundles, 0, "too few rays to bundle");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_blocker_at_the_light_and_one_at_the_origin_are_told_apart() {
+        // A unit quad in the plane x = 0 (two triangles).
+        let mesh = TriangleMesh::new(
+            vec![
+                [0.0, -1.0, -1.0],
+                [0.0, 1.0, -1.0],
+                [0.0, 1.0, 1.0],
+                [0.0, -1.0, 1.0],
+            ],
+            vec![[0, 1, 2], [0, 2, 3]],
+        );
+        let tree = KdAccel::new(KdTree::build(&mesh, BuildMethod::Sah), &mesh);
+        let mut rows = vec![];
+        for k in 0..64 {
+            let y = (k as f32 / 32.0 - 1.0) * 0.9;
+            // Through the quad toward a light beyond it; a light just short of it; from the
+            // quad's own plane (t = 0 is not a hit); toward a light on the quad's plane.
+            for (origin, light) in [
+                (Vec3::new(-1.0, y, 0.2), Vec3::new(2.0, 0.1, 0.0)),
+                (Vec3::new(-1.0, y, 0.2), Vec3::new(-1e-3, 0.1, 0.0)),
+                (Vec3::new(0.0, y, 0.2), Vec3::new(2.0, 0.1, 0.0)),
+                (Vec3::new(-1.0, y, 0.2), Vec3::new(0.0, 0.1, 0.0)),
+            ] {
+                let to = light - origin;
+                rows.push((origin, to.normalize(), to.length()));
+            }
+        }
+        let (o, d, t): (Vec<_>, Vec<_>, Vec<_>) = rows.into_iter().fold(
+            (vec![], vec![], vec![]),
+            |(mut o, mut d, mut t), (a, b, c)| {
+                o.push(a);
+                d.push(b);
+                t.push(c);
+                (o, d, t)
+            },
+        );
+        for level in Level::supported() {
+            let mut got = vec![false; o.len()];
+            tree.intersect_occluded_batch_counted(level, &o, &d, &t, &mut got);
+            for i in 0..o.len() {
+                let want = tree.intersect_occluded(o[i], d[i], t[i]);
+                assert_eq!(got[i], want, "{level:?} ray {i}");
+                let single = WatertightRay::new(o[i], d[i]).is_some();
+                assert!(single);
+            }
+            assert!(
+                got.iter().step_by(4).all(|&x| x),
+                "through the quad: blocked"
+            );
+            assert!(
+                !got.iter().skip(1).step_by(4).any(|&x| x),
+                "short of it: free"
+            );
+        }
+    }
 }

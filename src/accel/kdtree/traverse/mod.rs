@@ -78,6 +78,11 @@ pub struct KdAccel {
 }
 
 impl KdAccel {
+    /// Rays per [`KdAccel::intersect_occluded_batch`] call that let its light-rooted bundles find
+    /// coherent neighbours (measured on Sibenik: 4,096 traces ~15 % faster than 1,024; the
+    /// answers do not depend on it).
+    pub const OCCLUDED_BATCH: usize = 4096;
+
     /// Prepares `tree` for traversal against `mesh`, the mesh it indexes: copies the vertices
     /// of every leaf entry in leaf order and computes the exact root box. (Indices out of range
     /// of `mesh`, which `KdTree::validate` reports, become a degenerate triangle at the origin,
@@ -162,8 +167,12 @@ impl KdAccel {
         });
     }
 
-    /// [`KdAccel::intersect_occluded`] for many rays into `out` (same packet grouping and
-    /// guarantees as [`KdAccel::intersect_closest_batch`]). Panics if the lengths differ.
+    /// [`KdAccel::intersect_occluded`] for many rays into `out`, identical to it ray for ray.
+    /// Rays whose far ends (`o + t_max·d`) meet at a shared point — shadow rays toward a point
+    /// light — are traced from that point as light-rooted bundles of 8 or 16 rays (`bundle`:
+    /// culling from the light, each triangle tested in the ray's own frame); any others as
+    /// 4-ray packets (see [`KdAccel::intersect_closest_batch`]). Batches of about
+    /// [`KdAccel::OCCLUDED_BATCH`] rays bundle best. Panics if the lengths differ.
     pub fn intersect_occluded_batch(
         &self,
         origins: &[Vec3],
