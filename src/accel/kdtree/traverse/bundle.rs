@@ -489,6 +489,10 @@ struct Lanes<V: Wide> {
     inv: [V; 3],
     /// `g · |inv|` per axis (clamped to `f32::MAX`): the lane's world-space slack in `s` units.
     slack: [V; 3],
+    /// `inv · HI` (clamped to ±`f32::MAX`): interval *ends* are kept multiplied by `HI`.
+    inv_hi: [V; 3],
+    /// `slack · HI` (clamped to `f32::MAX`).
+    slack_hi: [V; 3],
     /// Lanes with `inv > 0`, per axis.
     pos: [V::Mask; 3],
     /// The same as one flag per axis.
@@ -572,6 +576,9 @@ impl KdAccel {
         let mut t1 = V::splat(1.0);
         let mut inv = [zero; 3];
         let mut slack = [zero; 3];
+        let mut inv_hi = [zero; 3];
+        let mut slack_hi = [zero; 3];
+        let hi = V::splat(HI);
         let mut pos = [V::lt(zero, zero); 3];
         let mut sign = [Sign::Mixed; 3];
         let filled = if info.len as usize >= 32 {
@@ -585,6 +592,8 @@ impl KdAccel {
             let s = grow.mul(i.abs()).min(big);
             inv[a] = i;
             slack[a] = s;
+            inv_hi[a] = i.mul(hi).max(small).min(big);
+            slack_hi[a] = s.mul(hi).min(big);
             pos[a] = V::gt(i, zero);
             let p = V::bits(pos[a]) & filled;
             sign[a] = if p == filled {
@@ -600,7 +609,10 @@ impl KdAccel {
             t0 = t0.max(ta.min(tb).sub(s));
             t1 = t1.min(ta.max(tb).add(s));
         }
-        let entered = V::and(V::le(t0, t1.mul(V::splat(HI))), valid);
+        // From here on a lane's interval end is kept multiplied by `HI`: "not empty up to the
+        // relative slack" is then one comparison, `t0 <= t1`.
+        let t1 = t1.mul(hi);
+        let entered = V::and(V::le(t0, t1), valid);
         let mask = V::bits(entered) & filled;
         count.bundle(info.len as u32);
         if mask == 0 {
@@ -609,6 +621,8 @@ impl KdAccel {
         let ln = Lanes {
             inv,
             slack,
+            inv_hi,
+            slack_hi,
             pos,
             sign,
             o: [o[k[0]], o[k[1]], o[k[2]]],
@@ -641,7 +655,6 @@ impl KdAccel {
         count: &mut C,
     ) -> u32 {
         let nodes = &self.tree.nodes[..];
-        let hi = V::splat(HI);
         let mut sp = 0usize;
         let mut alive = start.mask;
         let mut hit = 0u32;
@@ -659,10 +672,11 @@ impl KdAccel {
                 let axis = n.axis().min(2);
                 let d = n.split() - apex[axis];
                 // Each lane's part below and above the plane (within the slack): `m0..` is
-                // beyond the plane's far side of the slack, `..m1` before its near side.
-                let tp = V::splat(d).mul(ln.inv[axis]);
-                let m0 = e.t0.max(tp.sub(ln.slack[axis]));
-                let m1 = e.t1.min(tp.add(ln.slack[axis]));
+                // beyond the plane's far side of the slack, `..m1` before its near side (an end,
+                // so times `HI`: `(tp + slack) · HI` from the prescaled reciprocal and slack).
+                let dv = V::splat(d);
+                let m0 = e.t0.max(dv.mul(ln.inv[axis]).sub(ln.slack[axis]));
+                let m1 = e.t1.min(dv.mul(ln.inv_hi[axis]).add(ln.slack_hi[axis]));
                 let (lo0, lo1, hi0, hi1) = match ln.sign[axis] {
                     Sign::Pos => (e.t0, m1, m0, e.t1),
                     Sign::Neg => (m0, e.t1, e.t0, m1),
@@ -676,8 +690,8 @@ impl KdAccel {
                         )
                     }
                 };
-                let lo_m = V::bits(V::le(lo0, lo1.mul(hi))) & e.mask;
-                let hi_m = V::bits(V::le(hi0, hi1.mul(hi))) & e.mask;
+                let lo_m = V::bits(V::le(lo0, lo1)) & e.mask;
+                let hi_m = V::bits(V::le(hi0, hi1)) & e.mask;
                 let below = Entry {
                     t0: lo0,
                     t1: lo1,
