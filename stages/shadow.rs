@@ -8,6 +8,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::accel::kdtree::KdAccel;
 use crate::queue::{MIN_CHUNK, SampleSlot, ShadowQueue};
 use crate::stages::shade::Samples;
 use crate::world::World;
@@ -28,16 +29,19 @@ crate::column_set! {
 }
 
 /// Whether each shadow ray is blocked by anything strictly between its origin and its light.
-/// Chunks of rays go through [`World::intersect_occluded_batch`] (packets of consecutive rays).
+/// Chunks of rays go through [`World::intersect_occluded_batch`] (a mesh's shadow rays are traced
+/// from their light as bundles: chunks of [`KdAccel::OCCLUDED_BATCH`] rays give them coherent
+/// neighbours to bundle with).
 pub fn intersect_occluded(world: &World, rays: ShadowTrace<'_>) {
     let n = rays.origin.len();
+    let chunk = KdAccel::OCCLUDED_BATCH.max(MIN_CHUNK);
     rays.occluded.clear();
     rays.occluded.resize(n, false);
     rays.occluded
-        .par_chunks_mut(MIN_CHUNK)
+        .par_chunks_mut(chunk)
         .enumerate()
         .for_each(|(c, out)| {
-            let r = c * MIN_CHUNK..c * MIN_CHUNK + out.len();
+            let r = c * chunk..c * chunk + out.len();
             world.intersect_occluded_batch(
                 &rays.origin[r.clone()],
                 &rays.direction[r.clone()],

@@ -16,8 +16,10 @@
 //! available level and compare.
 #![allow(unsafe_code)]
 
+mod wide;
 mod x4;
 
+pub(crate) use wide::{Wide, WideKernel, dispatch_wide};
 pub(crate) use x4::{F32x4, M32x4, max_ps, min_ps};
 
 use std::sync::OnceLock;

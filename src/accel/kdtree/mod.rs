@@ -34,7 +34,7 @@ pub use node::KdNode;
 use overlap::Aabb;
 pub use stats::KdStats;
 pub use text::TreeError;
-pub use traverse::KdAccel;
+pub use traverse::{BundleCounts, KdAccel};
 
 /// Deepest tree the builders produce (the SAH builder also stops at `8 + 1.3·log2 N`, as pbrt).
 pub const MAX_BUILD_DEPTH: usize = 40;

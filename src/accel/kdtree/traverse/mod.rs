@@ -39,6 +39,7 @@
 //! near child of a closest-hit packet each lane finishes that subtree with the single-ray loop),
 //! so results are bit-identical to the single-ray queries.
 
+mod bundle;
 mod hit4;
 mod interval;
 mod packet;
@@ -54,6 +55,8 @@ use super::{KdTree, TriHit, exact_root};
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
 use crate::scene::TriangleTest;
+use crate::simd::Level;
+pub use bundle::BundleCounts;
 use visit::{Closest, Occluded};
 
 /// Rays per packet.
@@ -76,6 +79,11 @@ pub struct KdAccel {
 }
 
 impl KdAccel {
+    /// Rays per [`KdAccel::intersect_occluded_batch`] call that let its light-rooted bundles find
+    /// coherent neighbours (measured on Sibenik: 4,096 traces ~15 % faster than 1,024; the
+    /// answers do not depend on it).
+    pub const OCCLUDED_BATCH: usize = 4096;
+
     /// Prepares `tree` for traversal against `mesh`, the mesh it indexes: copies the vertices
     /// of every leaf entry in leaf order and computes the exact root box. (Indices out of range
     /// of `mesh`, which `KdTree::validate` reports, become a degenerate triangle at the origin,
@@ -161,8 +169,12 @@ impl KdAccel {
         });
     }
 
-    /// [`KdAccel::intersect_occluded`] for many rays into `out` (same packet grouping and
-    /// guarantees as [`KdAccel::intersect_closest_batch`]). Panics if the lengths differ.
+    /// [`KdAccel::intersect_occluded`] for many rays into `out`, identical to it ray for ray.
+    /// Rays whose far ends (`o + t_max·d`) meet at a shared point — shadow rays toward a point
+    /// light — are traced from that point as light-rooted bundles of 8 or 16 rays (`bundle`:
+    /// culling from the light, each triangle tested in the ray's own frame); any others as
+    /// 4-ray packets (see [`KdAccel::intersect_closest_batch`]). Batches of about
+    /// [`KdAccel::OCCLUDED_BATCH`] rays bundle best. Panics if the lengths differ.
     pub fn intersect_occluded_batch(
         &self,
         origins: &[Vec3],
@@ -171,7 +183,23 @@ impl KdAccel {
         out: &mut [bool],
     ) {
         assert!(out.len() == origins.len());
-        self.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| out[i] = o);
+        bundle::occluded_batch(self, origins, dirs, t_max, out);
+    }
+
+    /// [`KdAccel::intersect_occluded_batch`] with its light-rooted bundles traced at SIMD level
+    /// `level` (or the best supported one below it), counting their work: for tests (every
+    /// level gives the same answers) and measurements.
+    pub fn intersect_occluded_batch_counted(
+        &self,
+        level: Level,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out: &mut [bool],
+    ) -> BundleCounts {
+        let mut counts = BundleCounts::default();
+        bundle::occluded_batch_at(level, self, origins, dirs, t_max, out, &mut counts);
+        counts
     }
 
     /// One ray's query `V` with the triangle test chosen at run time.

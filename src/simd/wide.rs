@@ -1,0 +1,509 @@
+//! Wide `f32` lanes for the kD tree's light-rooted shadow bundles: 16 lanes with AVX-512, 8 with
+//! AVX2, and 8 portable lanes, behind one trait ([`Wide`]) and chosen at run time by
+//! [`dispatch_wide`].
+//!
+//! Why explicit lanes rather than loops over `[f32; 8]` for LLVM to vectorise (what
+//! [`super::Kernel`] bodies usually are): the bundle step ends in lane *masks* turned into bit
+//! sets and branched on, and LLVM's SLP vectoriser turned those loops into scalar
+//! `ucomiss`/`setae` sequences and per-lane stores (checked in the assembly; the first bundle
+//! kernel ran slower than single rays). Each operation here is one instruction.
+//!
+//! Reads and writes nothing but its arguments. Every operation has exactly the semantics of the
+//! corresponding scalar Rust operation on each lane (`+ - * /` are IEEE, never fused; `min`/`max`
+//! are `minps`/`maxps`: `a` if `a < b` (`a > b`), else `b`; comparisons are ordered, false on
+//! NaN), so a formula written once over [`Wide`] gives every lane the bits the scalar formula
+//! gives, whatever the width.
+//!
+//! Soundness: the AVX2 and AVX-512 types are private to this file, so the only way to run code
+//! over them is [`dispatch_wide`], which picks them only inside [`super::dispatch`]'s functions
+//! compiled for (and entered only on a CPU with) those features.
+#![allow(unsafe_code)]
+
+use super::{Kernel, Level, dispatch};
+
+/// `f32` lanes of one width with their comparison mask.
+pub(crate) trait Wide: Copy {
+    /// Lanes per value (at most 16).
+    const LANES: usize;
+    /// Per-lane truth values.
+    type Mask: Copy;
+    /// All lanes `x`.
+    fn splat(x: f32) -> Self;
+    /// Lane `k` is `a[k]` (`a` has at least [`Wide::LANES`] elements).
+    fn load(a: &[f32]) -> Self;
+    /// Writes lane `k` to `a[k]` (`a` has at least [`Wide::LANES`] elements).
+    #[cfg_attr(not(test), allow(dead_code))]
+    fn store(self, a: &mut [f32]);
+    /// `self + o`.
+    fn add(self, o: Self) -> Self;
+    /// `self - o`.
+    fn sub(self, o: Self) -> Self;
+    /// `self * o`.
+    fn mul(self, o: Self) -> Self;
+    /// `self / o`.
+    fn div(self, o: Self) -> Self;
+    /// `self` where `self < o`, else `o` (`minps`).
+    fn min(self, o: Self) -> Self;
+    /// `self` where `self > o`, else `o` (`maxps`).
+    fn max(self, o: Self) -> Self;
+    /// `|self|` (clears the sign bit).
+    fn abs(self) -> Self;
+    /// `self < o`.
+    fn lt(self, o: Self) -> Self::Mask;
+    /// `self <= o`.
+    fn le(self, o: Self) -> Self::Mask;
+    /// `self > o`.
+    fn gt(self, o: Self) -> Self::Mask;
+    /// `self == o`.
+    fn eq(self, o: Self) -> Self::Mask;
+    /// `a & b`.
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// `a | b`.
+    fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// `a` where `m`, else `b`.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// Bit `k` set for a true lane `k`.
+    fn bits(m: Self::Mask) -> u32;
+}
+
+/// A kernel generic over the lane type: [`dispatch_wide`] runs it with the widest [`Wide`] the
+/// level allows. Implementations must mark [`WideKernel::run`] and everything in its hot loop
+/// `#[inline(always)]` (see [`Kernel`]).
+pub(crate) trait WideKernel {
+    /// What the kernel returns.
+    type Output;
+    /// The body over lanes `V`.
+    fn run<V: Wide>(self) -> Self::Output;
+}
+
+/// Runs `kernel` with 16 AVX-512 lanes, 8 AVX2 lanes or 8 portable lanes: the best `level` (or
+/// the best supported level below it) allows.
+#[inline]
+pub(crate) fn dispatch_wide<K: WideKernel>(level: Level, kernel: K) -> K::Output {
+    dispatch(level, ByLevel(kernel))
+}
+
+/// The [`Kernel`] that maps a level to its lanes (private: only [`dispatch`] calls its `run`,
+/// with a level the CPU supports).
+struct ByLevel<K>(K);
+
+impl<K: WideKernel> Kernel for ByLevel<K> {
+    type Output = K::Output;
+
+    #[inline(always)]
+    fn run(self, level: Level) -> K::Output {
+        match level {
+            #[cfg(target_arch = "x86_64")]
+            Level::Avx512 => self.0.run::<x86::F32x16>(),
+            #[cfg(target_arch = "x86_64")]
+            Level::Avx2 => self.0.run::<x86::F32x8>(),
+            _ => self.0.run::<Portable8>(),
+        }
+    }
+}
+
+/// Eight lanes in an array, each operation a scalar loop (the portable path).
+#[derive(Clone, Copy, Debug)]
+struct Portable8([f32; 8]);
+
+impl Portable8 {
+    #[inline(always)]
+    fn map(self, o: Portable8, f: impl Fn(f32, f32) -> f32) -> Portable8 {
+        Portable8(std::array::from_fn(|k| f(self.0[k], o.0[k])))
+    }
+
+    #[inline(always)]
+    fn test(self, o: Portable8, f: impl Fn(f32, f32) -> bool) -> u32 {
+        let mut m = 0;
+        for k in 0..8 {
+            m |= (f(self.0[k], o.0[k]) as u32) << k;
+        }
+        m
+    }
+}
+
+impl Wide for Portable8 {
+    const LANES: usize = 8;
+    type Mask = u32;
+    #[inline(always)]
+    fn splat(x: f32) -> Portable8 {
+        Portable8([x; 8])
+    }
+    #[inline(always)]
+    fn load(a: &[f32]) -> Portable8 {
+        Portable8(std::array::from_fn(|k| a[k]))
+    }
+    #[inline(always)]
+    fn store(self, a: &mut [f32]) {
+        a[..8].copy_from_slice(&self.0);
+    }
+    #[inline(always)]
+    fn add(self, o: Portable8) -> Portable8 {
+        self.map(o, |a, b| a + b)
+    }
+    #[inline(always)]
+    fn sub(self, o: Portable8) -> Portable8 {
+        self.map(o, |a, b| a - b)
+    }
+    #[inline(always)]
+    fn mul(self, o: Portable8) -> Portable8 {
+        self.map(o, |a, b| a * b)
+    }
+    #[inline(always)]
+    fn div(self, o: Portable8) -> Portable8 {
+        self.map(o, |a, b| a / b)
+    }
+    #[inline(always)]
+    fn min(self, o: Portable8) -> Portable8 {
+        self.map(o, |a, b| if a < b { a } else { b })
+    }
+    #[inline(always)]
+    fn max(self, o: Portable8) -> Portable8 {
+        self.map(o, |a, b| if a > b { a } else { b })
+    }
+    #[inline(always)]
+    fn abs(self) -> Portable8 {
+        Portable8(self.0.map(f32::abs))
+    }
+    #[inline(always)]
+    fn lt(self, o: Portable8) -> u32 {
+        self.test(o, |a, b| a < b)
+    }
+    #[inline(always)]
+    fn le(self, o: Portable8) -> u32 {
+        self.test(o, |a, b| a <= b)
+    }
+    #[inline(always)]
+    fn gt(self, o: Portable8) -> u32 {
+        self.test(o, |a, b| a > b)
+    }
+    #[inline(always)]
+    fn eq(self, o: Portable8) -> u32 {
+        self.test(o, |a, b| a == b)
+    }
+    #[inline(always)]
+    fn and(a: u32, b: u32) -> u32 {
+        a & b
+    }
+    #[inline(always)]
+    fn or(a: u32, b: u32) -> u32 {
+        a | b
+    }
+    #[inline(always)]
+    fn select(m: u32, a: Portable8, b: Portable8) -> Portable8 {
+        Portable8(std::array::from_fn(|k| {
+            if m & (1 << k) != 0 { a.0[k] } else { b.0[k] }
+        }))
+    }
+    #[inline(always)]
+    fn bits(m: u32) -> u32 {
+        m
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    //! The AVX2 and AVX-512 lanes. Every `unsafe` block below calls an intrinsic of the
+    //! feature its type is for; the types are reachable only through `dispatch_wide`, inside
+    //! functions compiled for those features and entered only after the CPU was checked (see
+    //! the module docs), which is the one condition the intrinsics need. Loads and stores check
+    //! the slice length first.
+    use std::arch::x86_64::*;
+
+    use super::Wide;
+
+    /// Eight lanes in one AVX register.
+    #[derive(Clone, Copy, Debug)]
+    pub(super) struct F32x8(__m256);
+
+    impl Wide for F32x8 {
+        const LANES: usize = 8;
+        type Mask = __m256;
+        #[inline(always)]
+        fn splat(x: f32) -> F32x8 {
+            // SAFETY: AVX2 is available (module docs); no memory access.
+            F32x8(unsafe { _mm256_set1_ps(x) })
+        }
+        #[inline(always)]
+        fn load(a: &[f32]) -> F32x8 {
+            let a = &a[..8];
+            // SAFETY: AVX2 is available; `a` holds 8 floats (unaligned load).
+            F32x8(unsafe { _mm256_loadu_ps(a.as_ptr()) })
+        }
+        #[inline(always)]
+        fn store(self, a: &mut [f32]) {
+            let a = &mut a[..8];
+            // SAFETY: AVX2 is available; `a` holds 8 floats (unaligned store).
+            unsafe { _mm256_storeu_ps(a.as_mut_ptr(), self.0) }
+        }
+        #[inline(always)]
+        fn add(self, o: F32x8) -> F32x8 {
+            // SAFETY: AVX2 is available; no memory access.
+            F32x8(unsafe { _mm256_add_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn sub(self, o: F32x8) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_sub_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn mul(self, o: F32x8) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_mul_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn div(self, o: F32x8) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_div_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn min(self, o: F32x8) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_min_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn max(self, o: F32x8) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_max_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn abs(self) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_andnot_ps(_mm256_set1_ps(-0.0), self.0) })
+        }
+        #[inline(always)]
+        fn lt(self, o: F32x8) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_cmp_ps::<_CMP_LT_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn le(self, o: F32x8) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_cmp_ps::<_CMP_LE_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn gt(self, o: F32x8) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_cmp_ps::<_CMP_GT_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn eq(self, o: F32x8) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_cmp_ps::<_CMP_EQ_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn and(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_and_ps(a, b) }
+        }
+        #[inline(always)]
+        fn or(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_or_ps(a, b) }
+        }
+        #[inline(always)]
+        fn select(m: __m256, a: F32x8, b: F32x8) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_blendv_ps(b.0, a.0, m) })
+        }
+        #[inline(always)]
+        fn bits(m: __m256) -> u32 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_movemask_ps(m) as u32 }
+        }
+    }
+
+    /// Sixteen lanes in one AVX-512 register.
+    #[derive(Clone, Copy, Debug)]
+    pub(super) struct F32x16(__m512);
+
+    impl Wide for F32x16 {
+        const LANES: usize = 16;
+        type Mask = __mmask16;
+        #[inline(always)]
+        fn splat(x: f32) -> F32x16 {
+            // SAFETY: AVX-512F is available (module docs); no memory access.
+            F32x16(unsafe { _mm512_set1_ps(x) })
+        }
+        #[inline(always)]
+        fn load(a: &[f32]) -> F32x16 {
+            let a = &a[..16];
+            // SAFETY: AVX-512F is available; `a` holds 16 floats (unaligned load).
+            F32x16(unsafe { _mm512_loadu_ps(a.as_ptr()) })
+        }
+        #[inline(always)]
+        fn store(self, a: &mut [f32]) {
+            let a = &mut a[..16];
+            // SAFETY: AVX-512F is available; `a` holds 16 floats (unaligned store).
+            unsafe { _mm512_storeu_ps(a.as_mut_ptr(), self.0) }
+        }
+        #[inline(always)]
+        fn add(self, o: F32x16) -> F32x16 {
+            // SAFETY: AVX-512F is available; no memory access.
+            F32x16(unsafe { _mm512_add_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn sub(self, o: F32x16) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_sub_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn mul(self, o: F32x16) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_mul_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn div(self, o: F32x16) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_div_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn min(self, o: F32x16) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_min_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn max(self, o: F32x16) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_max_ps(self.0, o.0) })
+        }
+        #[inline(always)]
+        fn abs(self) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_abs_ps(self.0) })
+        }
+        #[inline(always)]
+        fn lt(self, o: F32x16) -> __mmask16 {
+            // SAFETY: as `add`.
+            unsafe { _mm512_cmp_ps_mask::<_CMP_LT_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn le(self, o: F32x16) -> __mmask16 {
+            // SAFETY: as `add`.
+            unsafe { _mm512_cmp_ps_mask::<_CMP_LE_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn gt(self, o: F32x16) -> __mmask16 {
+            // SAFETY: as `add`.
+            unsafe { _mm512_cmp_ps_mask::<_CMP_GT_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn eq(self, o: F32x16) -> __mmask16 {
+            // SAFETY: as `add`.
+            unsafe { _mm512_cmp_ps_mask::<_CMP_EQ_OQ>(self.0, o.0) }
+        }
+        #[inline(always)]
+        fn and(a: __mmask16, b: __mmask16) -> __mmask16 {
+            a & b
+        }
+        #[inline(always)]
+        fn or(a: __mmask16, b: __mmask16) -> __mmask16 {
+            a | b
+        }
+        #[inline(always)]
+        fn select(m: __mmask16, a: F32x16, b: F32x16) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_mask_blend_ps(m, b.0, a.0) })
+        }
+        #[inline(always)]
+        fn bits(m: __mmask16) -> u32 {
+            m as u32
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every operation of every supported width against the scalar operations, on values with
+    /// NaN, infinities, signed zeros and ties.
+    struct Check;
+
+    impl WideKernel for Check {
+        type Output = usize;
+        #[inline(always)]
+        fn run<V: Wide>(self) -> usize {
+            let special = [
+                0.0f32,
+                -0.0,
+                1.0,
+                -1.0,
+                f32::NAN,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                1e-30,
+                3.5,
+                -2.25,
+                f32::MAX,
+                f32::MIN_POSITIVE,
+                7.0,
+                1.0,
+                -0.0,
+                2.0,
+            ];
+            let n = V::LANES;
+            for shift in 0..special.len() {
+                let a: Vec<f32> = (0..n).map(|k| special[(k + shift) % 16]).collect();
+                let b: Vec<f32> = (0..n).map(|k| special[(3 * k + 1) % 16]).collect();
+                let (va, vb) = (V::load(&a), V::load(&b));
+                let mut out = vec![0.0; n];
+                let check = |v: V, f: &dyn Fn(f32, f32) -> f32, out: &mut Vec<f32>| {
+                    v.store(out);
+                    for k in 0..n {
+                        let want = f(a[k], b[k]);
+                        assert!(
+                            out[k].to_bits() == want.to_bits() || out[k].is_nan() && want.is_nan(),
+                            "lane {k}: {} vs {want} for {} and {}",
+                            out[k],
+                            a[k],
+                            b[k]
+                        );
+                    }
+                };
+                check(va.add(vb), &|x, y| x + y, &mut out);
+                check(va.sub(vb), &|x, y| x - y, &mut out);
+                check(va.mul(vb), &|x, y| x * y, &mut out);
+                check(va.div(vb), &|x, y| x / y, &mut out);
+                check(va.min(vb), &|x, y| if x < y { x } else { y }, &mut out);
+                check(va.max(vb), &|x, y| if x > y { x } else { y }, &mut out);
+                check(va.abs(), &|x, _| x.abs(), &mut out);
+                let lt = V::lt(va, vb);
+                check(
+                    V::select(lt, va, vb),
+                    &|x, y| if x < y { x } else { y },
+                    &mut out,
+                );
+                let mask = |f: &dyn Fn(f32, f32) -> bool| {
+                    (0..n).fold(0u32, |m, k| m | (f(a[k], b[k]) as u32) << k)
+                };
+                assert_eq!(V::bits(V::lt(va, vb)), mask(&|x, y| x < y));
+                assert_eq!(V::bits(V::le(va, vb)), mask(&|x, y| x <= y));
+                assert_eq!(V::bits(V::gt(va, vb)), mask(&|x, y| x > y));
+                assert_eq!(V::bits(V::eq(va, vb)), mask(&|x, y| x == y));
+                assert_eq!(
+                    V::bits(V::and(V::lt(va, vb), V::eq(va, va))),
+                    mask(&|x, y| x < y && !x.is_nan())
+                );
+                assert_eq!(
+                    V::bits(V::or(V::lt(va, vb), V::gt(va, vb))),
+                    mask(&|x, y| x.partial_cmp(&y).is_some_and(|o| o.is_ne()))
+                );
+                check(V::splat(a[0]), &|_, _| a[0], &mut out);
+            }
+            n
+        }
+    }
+
+    #[test]
+    fn every_width_computes_the_scalar_bits() {
+        for level in Level::supported() {
+            let lanes = dispatch_wide(level, Check);
+            let want = match level {
+                Level::Avx512 => 16,
+                _ => 8,
+            };
+            assert_eq!(lanes, want, "{level:?}");
+        }
+    }
+}
