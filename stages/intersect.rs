@@ -50,8 +50,13 @@ crate::column_set! {
     }
 }
 
-/// Closest hit of every ray (one row per ray). Chunks of rays go through
-/// [`World::intersect_closest_batch`] (packets of consecutive, coherent rays).
+/// Rays per call of [`World::intersect_closest_batch`]: 8 rows of a 512-pixel-wide image at one
+/// sample per pixel, so the kD tree can regroup camera rays into 8 × 8 pixel tiles.
+pub const TRACE_CHUNK: usize = 4 * MIN_CHUNK;
+
+/// Closest hit of every ray (one row per ray). Chunks of [`TRACE_CHUNK`] rays go through
+/// [`World::intersect_closest_batch`] (camera rays as frusta of screen tiles, others as packets
+/// of consecutive, coherent rays).
 pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
     let n = rays.origin.len();
     out.t.clear();
@@ -59,11 +64,11 @@ pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'
     out.prim.clear();
     out.prim.resize(n, PrimId::NONE);
     out.t
-        .par_chunks_mut(MIN_CHUNK)
-        .zip(out.prim.par_chunks_mut(MIN_CHUNK))
+        .par_chunks_mut(TRACE_CHUNK)
+        .zip(out.prim.par_chunks_mut(TRACE_CHUNK))
         .enumerate()
         .for_each(|(c, (t, prim))| {
-            let r = c * MIN_CHUNK..c * MIN_CHUNK + t.len();
+            let r = c * TRACE_CHUNK..c * TRACE_CHUNK + t.len();
             world.intersect_closest_batch(
                 &rays.origin[r.clone()],
                 &rays.direction[r.clone()],

@@ -24,7 +24,7 @@ mod overlap;
 mod reframe;
 mod stats;
 mod text;
-mod traverse;
+pub mod traverse;
 mod validate;
 
 use glam::Vec3;

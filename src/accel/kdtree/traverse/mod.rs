@@ -39,6 +39,7 @@
 //! near child of a closest-hit packet each lane finishes that subtree with the single-ray loop),
 //! so results are bit-identical to the single-ray queries.
 
+pub mod frustum;
 mod hit4;
 mod interval;
 mod packet;
@@ -53,6 +54,7 @@ use super::{KdTree, TriHit, exact_root};
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
 use crate::scene::TriangleTest;
+use crate::simd::{Kernel, Level, dispatch};
 use visit::{Closest, Occluded};
 
 /// Rays per packet.
@@ -141,10 +143,13 @@ impl KdAccel {
     }
 
     /// [`KdAccel::intersect_closest`] for many rays: `out_t[i]`, `out_tri[i]` receive ray `i`'s
-    /// hit, or `f32::INFINITY` and `u32::MAX` on a miss. Groups of 4 consecutive rays whose
-    /// directions agree in sign are traced as a packet; results are bit-identical to the
-    /// single-ray query (each lane makes exactly the single ray's decisions, see the module
-    /// docs). Panics if the slices' lengths differ.
+    /// hit, or `f32::INFINITY` and `u32::MAX` on a miss; any `t_max` per ray, any directions.
+    /// A batch whose rays all share one origin (camera rays) is regrouped into screen tiles and
+    /// traced as wide frusta (`frustum`); other batches go in groups of 4 consecutive rays whose
+    /// directions agree in sign as packets. Compiled for the best SIMD level of the CPU
+    /// ([`Level::current`]). Results are bit-identical to the single-ray query whatever the path
+    /// and level (each lane makes exactly the single ray's decisions, see the module docs).
+    /// Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
         origins: &[Vec3],
@@ -153,10 +158,33 @@ impl KdAccel {
         out_t: &mut [f32],
         out_tri: &mut [u32],
     ) {
-        assert!(out_t.len() == origins.len() && out_tri.len() == origins.len());
-        self.batch::<WatertightRay, Closest>(origins, dirs, t_max, false, |i, h| {
-            (out_t[i], out_tri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
-        });
+        self.intersect_closest_batch_at(Level::current(), origins, dirs, t_max, out_t, out_tri);
+    }
+
+    /// [`KdAccel::intersect_closest_batch`] compiled for `level` (or the best supported level
+    /// below it): for tests and benchmarks comparing levels. Same answers at every level.
+    pub fn intersect_closest_batch_at(
+        &self,
+        level: Level,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out_t: &mut [f32],
+        out_tri: &mut [u32],
+    ) {
+        let n = origins.len();
+        assert!(dirs.len() == n && t_max.len() == n && out_t.len() == n && out_tri.len() == n);
+        dispatch(
+            level,
+            ClosestBatch {
+                accel: self,
+                origins,
+                dirs,
+                t_max,
+                out_t,
+                out_tri,
+            },
+        );
     }
 
     /// [`KdAccel::intersect_occluded`] for many rays into `out` (same packet grouping and
@@ -184,6 +212,50 @@ impl KdAccel {
         match test {
             TriangleTest::Watertight => self.query::<WatertightRay, V>(origin, dir, t_max),
             TriangleTest::MollerTrumbore => self.query::<MollerTrumboreRay, V>(origin, dir, t_max),
+        }
+    }
+}
+
+/// The closest-hit batch as a [`Kernel`]: compiled once per SIMD level.
+struct ClosestBatch<'a> {
+    /// The accelerator.
+    accel: &'a KdAccel,
+    /// Ray origins.
+    origins: &'a [Vec3],
+    /// Ray directions.
+    dirs: &'a [Vec3],
+    /// Per-ray bounds.
+    t_max: &'a [f32],
+    /// Hit distances out.
+    out_t: &'a mut [f32],
+    /// Hit triangles out.
+    out_tri: &'a mut [u32],
+}
+
+impl Kernel for ClosestBatch<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self, level: Level) {
+        let ClosestBatch {
+            accel,
+            origins,
+            dirs,
+            t_max,
+            out_t,
+            out_tri,
+        } = self;
+        let mut scratch = frustum::FrustumScratch::new();
+        let wide = match level {
+            Level::Avx512 => {
+                accel.closest_frusta::<16>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
+            }
+            _ => accel.closest_frusta::<8>(origins, dirs, t_max, out_t, out_tri, &mut scratch),
+        };
+        if !wide {
+            accel.batch::<WatertightRay, Closest>(origins, dirs, t_max, false, |i, h| {
+                (out_t[i], out_tri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
+            });
         }
     }
 }

@@ -47,6 +47,21 @@ pub(super) struct Closest {
     best: Option<TriHit>,
 }
 
+impl Closest {
+    /// A closest-hit visitor that already holds `best` (a lane handed from a frustum to the
+    /// single-ray loop).
+    #[inline(always)]
+    pub(super) fn resume(t_max: f32, best: Option<TriHit>) -> Closest {
+        Closest { t_max, best }
+    }
+
+    /// The best hit so far.
+    #[inline(always)]
+    pub(super) fn best(&self) -> Option<TriHit> {
+        self.best
+    }
+}
+
 impl Visitor for Closest {
     type Out = Option<TriHit>;
     const ORDER_FREE: bool = false;
