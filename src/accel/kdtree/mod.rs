@@ -24,7 +24,7 @@ mod overlap;
 mod reframe;
 mod stats;
 mod text;
-pub mod traverse;
+mod traverse;
 mod validate;
 
 use glam::Vec3;

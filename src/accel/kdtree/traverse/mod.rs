@@ -39,7 +39,7 @@
 //! near child of a closest-hit packet each lane finishes that subtree with the single-ray loop),
 //! so results are bit-identical to the single-ray queries.
 
-pub mod frustum;
+mod frustum;
 mod hit4;
 mod interval;
 mod packet;
