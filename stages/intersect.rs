@@ -54,7 +54,7 @@ crate::column_set! {
 /// sample per pixel, so the kD tree can regroup camera rays into 8 × 8 pixel tiles.
 pub const TRACE_CHUNK: usize = 4 * MIN_CHUNK;
 
-/// Closest hit of every ray (one row per ray). Chunks of [`TRACE_CHUNK`] rays go through
+/// Closest hit of every ray (one row per ray). Chunks of up to [`TRACE_CHUNK`] rays go through
 /// [`World::intersect_closest_batch`] (camera rays as frusta of screen tiles, others as packets
 /// of consecutive, coherent rays).
 pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
@@ -63,12 +63,14 @@ pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'
     out.t.resize(n, f32::INFINITY);
     out.prim.clear();
     out.prim.resize(n, PrimId::NONE);
+    // Small queues in smaller chunks, so every thread gets some (answers do not depend on it).
+    let chunk = TRACE_CHUNK.min((n / (4 * rayon::current_num_threads())).max(MIN_CHUNK));
     out.t
-        .par_chunks_mut(TRACE_CHUNK)
-        .zip(out.prim.par_chunks_mut(TRACE_CHUNK))
+        .par_chunks_mut(chunk)
+        .zip(out.prim.par_chunks_mut(chunk))
         .enumerate()
         .for_each(|(c, (t, prim))| {
-            let r = c * TRACE_CHUNK..c * TRACE_CHUNK + t.len();
+            let r = c * chunk..c * chunk + t.len();
             world.intersect_closest_batch(
                 &rays.origin[r.clone()],
                 &rays.direction[r.clone()],

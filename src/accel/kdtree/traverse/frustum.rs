@@ -36,10 +36,7 @@ use glam::Vec3;
 
 use super::KdAccel;
 use super::interval::{DELTA, HI};
-use super::ray::Ray;
-use super::single::Entry;
-use super::visit::{Closest, Visitor};
-use crate::accel::kdtree::{MAX_DEPTH, TriHit};
+use crate::accel::kdtree::MAX_DEPTH;
 use crate::geometry::triangle::WatertightRay;
 use crate::simd::{bits, max_ps, min_ps};
 
@@ -82,8 +79,12 @@ impl Default for WideEntry {
 
 /// A frustum's rays, structure-of-arrays, and each lane's closest-hit state.
 struct Frustum {
-    /// The shared origin (the 4th component pads for the 2-bit axis index).
-    origin: [f32; 4],
+    /// Origins per axis and lane (the 4th axis pads for the 2-bit axis index).
+    org: [[f32; WIDE]; 4],
+    /// Interval-arithmetic bounds of the live lanes' origins, per axis.
+    org_lo: [f32; 4],
+    /// See `org_lo`.
+    org_hi: [f32; 4],
     /// `1 / d` per axis and lane (4th axis pads).
     inv: [[f32; WIDE]; 4],
     /// Per-axis `δ` slack in `t` units, per lane.
@@ -137,7 +138,9 @@ impl FrustumScratch {
     pub(super) fn new() -> Box<FrustumScratch> {
         Box::new(FrustumScratch {
             f: Frustum {
-                origin: [0.0; 4],
+                org: [[0.0; WIDE]; 4],
+                org_lo: [0.0; 4],
+                org_hi: [0.0; 4],
                 inv: [[0.0; WIDE]; 4],
                 slack: [[0.0; WIDE]; 4],
                 inv_lo: [0.0; 4],
@@ -165,10 +168,8 @@ impl FrustumScratch {
 
 /// A run of rays sharing origin `o` and watertight permutation `perm`, traced as one frustum.
 struct Rows<'a> {
-    /// The shared origin.
-    o: Vec3,
-    /// The shared `δ` (`Ray::new`'s, from `o`).
-    delta: f32,
+    /// All the batch's origins.
+    origins: &'a [Vec3],
     /// Permutation: `2·kz + (d[kz] < 0)`.
     perm: u32,
     /// All the batch's directions.
@@ -193,14 +194,15 @@ fn lanes_mut<const G: usize, T>(a: &mut [T; WIDE], g: usize) -> &mut [T; G] {
         .expect("group in range")
 }
 
-/// The single-ray step ([`super::interval::step`]) for `G` lanes with a shared
-/// `s = split - origin`: writes the normalised near `t1`, far `t0`, far `t1` and returns the bits
+/// The single-ray step ([`super::interval::step`]) for `G` lanes at the plane `split`, origins
+/// `o` on the node's axis: writes the normalised near `t1`, far `t0`, far `t1` and returns the bits
 /// of the lanes entering the near and the far child. All three sign cases are computed and
 /// blended, as the 4-lane step does; each value is the scalar step's, bit for bit.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn step_lanes<const G: usize>(
-    s: f32,
+    split: f32,
+    o: &[f32; G],
     inv: &[f32; G],
     slack: &[f32; G],
     t0: &[f32; G],
@@ -213,7 +215,7 @@ fn step_lanes<const G: usize>(
     let mut go_far = [false; G];
     for j in 0..G {
         let (a0, a1, sl) = (t0[j], t1[j], slack[j]);
-        let tp = s * inv[j];
+        let tp = (split - o[j]) * inv[j];
         let tps = tp + sl;
         let pos = tp > 0.0;
         let nonpos = tp <= 0.0;
@@ -317,20 +319,31 @@ enum Sided {
     Step(f32, f32),
 }
 
-/// Interval arithmetic for one inner node over a whole frustum: whether every live lane
-/// provably goes to one child only with its interval unchanged (the step would leave `t0`, `t1`
-/// as they are). `s = split - origin` (non-zero), `[inv_lo, inv_hi]` bounds the lanes' `1/d`,
+/// Interval arithmetic for one inner node over a whole frustum whose lanes agree on the near
+/// side: whether every live lane provably goes to one child only with its interval unchanged
+/// (the step would leave `t0`, `t1` as they are). `[s_lo, s_hi]` bounds the lanes'
+/// `split - origin`, `[inv_lo, inv_hi]` their `1/d`,
 /// `slack_hi` their `δ`, `[lo, hi]` their `t0` and `t1`. Rounding is monotonic, so bounds
 /// computed from bounds with the step's own operations bound the lanes' rounded values; live
 /// lanes keep `t0 <= t1·HI` (every entry test checks it).
 #[inline(always)]
-fn one_sided(s: f32, inv_lo: f32, inv_hi: f32, slack_hi: f32, lo: f32, hi: f32) -> Sided {
-    // `tp = s · inv` over the lanes: the product is monotonic in `inv` for a fixed `s`.
-    let (a, b) = (s * inv_lo, s * inv_hi);
-    let (tp_lo, tp_hi) = if s > 0.0 { (a, b) } else { (b, a) };
-    if tp_lo.is_nan() || tp_hi.is_nan() {
+fn one_sided(
+    s_lo: f32,
+    s_hi: f32,
+    inv_lo: f32,
+    inv_hi: f32,
+    slack_hi: f32,
+    lo: f32,
+    hi: f32,
+) -> Sided {
+    // `tp = s · inv` over the lanes: the exact product of two intervals is extreme at corners,
+    // and rounding is monotonic.
+    let c = [s_lo * inv_lo, s_lo * inv_hi, s_hi * inv_lo, s_hi * inv_hi];
+    if c.iter().any(|x| x.is_nan()) {
         return Sided::Step(f32::NEG_INFINITY, f32::INFINITY);
     }
+    let tp_lo = c.into_iter().fold(f32::INFINITY, min_ps);
+    let tp_hi = c.into_iter().fold(f32::NEG_INFINITY, max_ps);
     if tp_lo > 0.0 {
         // Every lane in the `tp > 0` case. Far not entered: `max(t0, tp - δ) > t1·HI` holds when
         // `tp - δ > t1·HI` for every lane (and then `t0 <= t1·HI < tp - δ`: near entered).
@@ -367,15 +380,6 @@ impl KdAccel {
         if n < 2 * WIDE {
             return false;
         }
-        let o = origins[0];
-        let same = |p: &Vec3| {
-            p.x.to_bits() == o.x.to_bits()
-                && p.y.to_bits() == o.y.to_bits()
-                && p.z.to_bits() == o.z.to_bits()
-        };
-        if !origins.iter().all(same) {
-            return false;
-        }
         self.regroup(dirs, scratch);
         let FrustumScratch {
             f,
@@ -385,12 +389,6 @@ impl KdAccel {
             order,
             ..
         } = scratch;
-        // `δ` of every ray from this origin (`Ray::new`'s formula).
-        let reach = (Vec3::from_array(self.root.0) - o)
-            .abs()
-            .max((Vec3::from_array(self.root.1) - o).abs())
-            .max_element();
-        let delta = DELTA * reach;
         // `order` lists the rays permutation by permutation (invalid rays last), tile by tile.
         let mut i = 0;
         while i < n {
@@ -403,12 +401,11 @@ impl KdAccel {
             if perm >= 6 {
                 for &r in rows {
                     let r = r as usize;
-                    (out_t[r], out_tri[r]) = self.single_closest(o, dirs[r], t_max[r]);
+                    (out_t[r], out_tri[r]) = self.single_closest(origins[r], dirs[r], t_max[r]);
                 }
             } else {
                 let rays = Rows {
-                    o,
-                    delta,
+                    origins,
                     perm,
                     dirs,
                     t_max,
@@ -532,13 +529,13 @@ impl KdAccel {
         tmp: &mut [[f32; WIDE]; 3],
     ) {
         let mut entry = WideEntry::default();
-        let o = rays.o;
-        f.origin = o.extend(0.0).to_array();
         let mut d = [[1.0f32; WIDE]; 3];
         let mut live = [false; WIDE];
         for (lane, &r) in rays.rows.iter().enumerate() {
             let r = r as usize;
             let dir = rays.dirs[r];
+            let o = rays.origins[r];
+            (f.org[0][lane], f.org[1][lane], f.org[2][lane]) = (o.x, o.y, o.z);
             f.dir[lane] = dir;
             (d[0][lane], d[1][lane], d[2][lane]) = (dir.x, dir.y, dir.z);
             f.t_max[lane] = rays.t_max[r];
@@ -557,8 +554,14 @@ impl KdAccel {
         };
         let [kx, ky, _] = axes;
         let (lo, hi) = (self.root.0, self.root.1);
-        let origin_ok = o.is_finite();
         for k in 0..WIDE {
+            let o = [f.org[0][k], f.org[1][k], f.org[2][k]];
+            let origin_ok = o.iter().all(|x| x.is_finite());
+            // `Ray::new`'s `δ`: the L∞ distance to the farthest root corner.
+            let reach = (0..3)
+                .map(|a| (lo[a] - o[a]).abs().max((hi[a] - o[a]).abs()))
+                .fold(f32::NEG_INFINITY, f32::max);
+            let delta = DELTA * reach;
             let tm = f.t_max[k];
             // `WatertightRay::new`'s shear and its test for a direction it rejects.
             let dz = d[kz][k];
@@ -575,7 +578,7 @@ impl KdAccel {
             let mut t1 = tm;
             for a in 0..3 {
                 let inv = 1.0 / d[a][k];
-                let slack = (inv.abs() * rays.delta).min(f32::MAX);
+                let slack = (inv.abs() * delta).min(f32::MAX);
                 f.inv[a][k] = inv;
                 f.slack[a][k] = slack;
                 let ta = (lo[a] - o[a]) * inv;
@@ -604,6 +607,8 @@ impl KdAccel {
             let only = |x: &[f32; WIDE], none: f32| -> [f32; WIDE] {
                 std::array::from_fn(|k| if live[k] { x[k] } else { none })
             };
+            f.org_lo[a] = min_all::<G>(&only(&f.org[a], f32::INFINITY));
+            f.org_hi[a] = max_all::<G>(&only(&f.org[a], f32::NEG_INFINITY));
             f.inv_lo[a] = min_all::<G>(&only(&f.inv[a], f32::INFINITY));
             f.inv_hi[a] = max_all::<G>(&only(&f.inv[a], f32::NEG_INFINITY));
             f.slack_hi[a] = max_all::<G>(&only(&f.slack[a], f32::NEG_INFINITY));
@@ -635,7 +640,7 @@ impl KdAccel {
         let mut sp = 0usize;
         let mut e = start;
         loop {
-            // Descend to a leaf (or to a subtree the lanes finish alone).
+            // Descend to a leaf.
             let leaf = loop {
                 let Some(&n) = nodes.get(e.node as usize) else {
                     break None;
@@ -645,50 +650,45 @@ impl KdAccel {
                 }
                 let axis = n.axis();
                 let split = n.split();
-                let o = f.origin[axis];
-                let s = split - o;
                 let (left, right) = (e.node + 1, n.right());
                 let m = e.mask;
-                let near_left = if o < split {
-                    true
-                } else if o > split {
-                    false
+                // The near side is the origin's (on the plane: the direction's sign).
+                let near_left = if f.org_hi[axis] < split {
+                    m
+                } else if f.org_lo[axis] > split {
+                    0
                 } else {
-                    // On the plane: the near side follows each lane's direction sign.
-                    let mut neg = 0u64;
+                    let mut nl = 0u64;
                     for g in 0..groups {
+                        let o = lanes::<G, f32>(&f.org[axis], g);
                         let inv = lanes::<G, f32>(&f.inv[axis], g);
                         let mut b = [false; G];
                         for j in 0..G {
-                            b[j] = inv[j] < 0.0;
+                            b[j] = o[j] < split || (o[j] == split && inv[j] < 0.0);
                         }
-                        neg |= bits(&b) << (g * G);
+                        nl |= bits(&b) << (g * G);
                     }
-                    let neg = neg & m;
-                    if neg == m {
-                        true
-                    } else if neg == 0 {
-                        false
-                    } else {
-                        self.finish_alone(f, &e);
-                        break None;
-                    }
+                    nl & m
                 };
-                let (near, far) = if near_left {
+                let uniform = near_left == m || near_left == 0;
+                let (near, far) = if near_left == m {
                     (left, right)
                 } else {
                     (right, left)
                 };
-                // The whole frustum one way, intervals unchanged: no lane work.
-                let (tp_lo, tp_hi) = if s != 0.0 {
+                // `split - o` over the lanes (monotonic in `o`).
+                let (s_lo, s_hi) = (split - f.org_hi[axis], split - f.org_lo[axis]);
+                let (tp_lo, tp_hi) = if uniform {
                     match one_sided(
-                        s,
+                        s_lo,
+                        s_hi,
                         f.inv_lo[axis],
                         f.inv_hi[axis],
                         f.slack_hi[axis],
                         e.lo,
                         e.hi,
                     ) {
+                        // The whole frustum one way, intervals unchanged: no lane work.
                         Sided::Near => {
                             e.node = near;
                             continue;
@@ -723,7 +723,8 @@ impl KdAccel {
                         continue;
                     }
                     let (gn, gf) = step_lanes::<G>(
-                        s,
+                        split,
+                        lanes::<G, f32>(&f.org[axis], g),
                         lanes::<G, f32>(&f.inv[axis], g),
                         lanes::<G, f32>(&f.slack[axis], g),
                         lanes::<G, f32>(&e.t0, g),
@@ -737,6 +738,51 @@ impl KdAccel {
                 }
                 go_near &= m;
                 go_far &= m;
+                if !uniform {
+                    // Lanes on both sides of the plane: each lane's children as left/right,
+                    // the lowest live lane's near side first. The order changes no answer: a
+                    // lane still visits every leaf that starts before its best hit (culling
+                    // only skips entries beyond it), so it meets the leaf holding its closest
+                    // hit, and keeps the least `(t, index)` of what it tests, as the single
+                    // ray does.
+                    let nl = near_left;
+                    let left_mask = (nl & go_near) | (!nl & go_far);
+                    let right_mask = (nl & go_far) | (!nl & go_near);
+                    let left_first = nl & (m & m.wrapping_neg()) != 0;
+                    let (first_mask, second_mask, second_node) = if left_first {
+                        (left_mask, right_mask, right)
+                    } else {
+                        (right_mask, left_mask, left)
+                    };
+                    let first_node = if left_first { left } else { right };
+                    // Lanes whose near side goes first keep (t0, near t1) in `e` and push the
+                    // far interval; the others the other way round.
+                    let flip = if left_first { !nl } else { nl };
+                    if second_mask != 0 && sp < stack.len() {
+                        let top = &mut stack[sp];
+                        for k in 0..WIDE {
+                            let f_k = flip >> k & 1 != 0;
+                            top.t0[k] = if f_k { e.t0[k] } else { far_t0[k] };
+                            top.t1[k] = if f_k { near_t1[k] } else { far_t1[k] };
+                        }
+                        top.node = second_node;
+                        top.mask = second_mask;
+                        top.lo = e.lo;
+                        top.hi = e.hi;
+                        sp += 1;
+                    }
+                    for k in 0..WIDE {
+                        let f_k = flip >> k & 1 != 0;
+                        e.t0[k] = if f_k { far_t0[k] } else { e.t0[k] };
+                        e.t1[k] = if f_k { far_t1[k] } else { near_t1[k] };
+                    }
+                    e.node = first_node;
+                    e.mask = first_mask;
+                    if first_mask == 0 {
+                        break None;
+                    }
+                    continue;
+                }
                 if go_near != 0 && go_far != 0 {
                     if sp < stack.len() {
                         let top = &mut stack[sp];
@@ -788,36 +834,6 @@ impl KdAccel {
         }
     }
 
-    /// Each live lane of `e` finishes the subtree `e.node` alone with the single-ray loop.
-    #[cold]
-    fn finish_alone(&self, f: &mut Frustum, e: &WideEntry) {
-        let o = Vec3::from_slice(&f.origin[..3]);
-        for k in 0..WIDE {
-            if e.mask >> k & 1 == 0 {
-                continue;
-            }
-            let Some(ray) = Ray::<WatertightRay>::new(o, f.dir[k], &self.root) else {
-                continue;
-            };
-            let best = (f.best_tri[k] != u32::MAX).then_some(TriHit {
-                t: f.best_t[k],
-                tri: f.best_tri[k],
-            });
-            let mut v = Closest::resume(f.t_max[k], best);
-            let one = Entry {
-                node: e.node,
-                t0: e.t0[k],
-                t1: e.t1[k],
-            };
-            self.walk(&ray, one, &mut v);
-            if let Some(b) = v.best() {
-                (f.best_t[k], f.best_tri[k]) = (b.t, b.tri);
-            }
-            f.limit[k] = v.limit();
-            f.cull[k] = v.cull();
-        }
-    }
-
     /// Tests the leaf entries `start..start + count` against the lanes of `mask`, triangle by
     /// triangle in leaf order (as each single ray does), updating each lane's best hit.
     #[inline(always)]
@@ -829,10 +845,9 @@ impl KdAccel {
             return;
         };
         let [kx, ky, kz] = f.k;
-        let o = f.origin;
         for (p, &id) in tris.iter().zip(ids) {
-            let rel = |v: &[f32; 3]| [v[kx] - o[kx], v[ky] - o[ky], v[kz] - o[kz]];
-            let (a, b, c) = (rel(&p[0]), rel(&p[1]), rel(&p[2]));
+            let perm = |v: &[f32; 3]| [v[kx], v[ky], v[kz]];
+            let (a, b, c) = (perm(&p[0]), perm(&p[1]), perm(&p[2]));
             for g in 0..WIDE / G {
                 let gm = (mask >> (g * G)) & group_bits::<G>();
                 if gm == 0 {
@@ -855,7 +870,7 @@ impl KdAccel {
             let k = base + edge.trailing_zeros() as usize;
             edge &= edge - 1;
             let ray = WatertightRay {
-                origin: Vec3::from_slice(&f.origin[..3]),
+                origin: Vec3::new(f.org[0][k], f.org[1][k], f.org[2][k]),
                 kx,
                 ky,
                 kz,
@@ -874,9 +889,8 @@ impl KdAccel {
     }
 }
 
-/// One triangle (vertex offsets from the shared origin `a`, `b`, `c` in the permuted axes)
-/// against the `G` lanes of group `g` whose bits are in `live`: the watertight test's
-/// operations in the scalar order, each hit taken as `Closest::accept` would. Returns the bits
+/// One triangle (vertices `a`, `b`, `c` in the permuted axes) against the `G` lanes of group
+/// `g` whose bits are in `live`: the watertight test's operations in the scalar order, each hit taken as `Closest::accept` would. Returns the bits
 /// of the lanes on an edge (`u`, `v` or `w` zero), which the caller retests.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
@@ -889,6 +903,10 @@ fn hit_lanes<const G: usize>(
     c: &[f32; 3],
     id: u32,
 ) -> u64 {
+    let [kx, ky, kz] = f.k;
+    let ox = *lanes::<G, f32>(&f.org[kx], g);
+    let oy = *lanes::<G, f32>(&f.org[ky], g);
+    let oz = *lanes::<G, f32>(&f.org[kz], g);
     let sx = *lanes::<G, f32>(&f.sx, g);
     let sy = *lanes::<G, f32>(&f.sy, g);
     let sz = *lanes::<G, f32>(&f.sz, g);
@@ -898,6 +916,8 @@ fn hit_lanes<const G: usize>(
     let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
     let mut cull = *lanes::<G, f32>(&f.cull, g);
     for j in 0..G {
+        let rel = |v: &[f32; 3]| [v[0] - ox[j], v[1] - oy[j], v[2] - oz[j]];
+        let (a, b, c) = (rel(a), rel(b), rel(c));
         let ax = a[0] - sx[j] * a[2];
         let ay = a[1] - sy[j] * a[2];
         let bx = b[0] - sx[j] * b[2];

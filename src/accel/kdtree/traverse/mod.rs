@@ -474,11 +474,24 @@ mod tests {
                     (bt[i], btri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
                 });
                 tree.batch::<WatertightRay, Occluded>(&o, &d, &tm, force, |i, x| occ[i] = x);
+                // The batch entry: frusta of the regrouped rays (incoherent origins and
+                // directions here), at every SIMD level.
+                let mut levels = vec![];
+                for level in crate::simd::Level::supported() {
+                    let (mut lt, mut ltri) = (vec![0.0; n], vec![0; n]);
+                    tree.intersect_closest_batch_at(level, &o, &d, &tm, &mut lt, &mut ltri);
+                    levels.push((level, lt, ltri));
+                }
                 let mut hits = 0;
                 for i in 0..n {
                     let want = tree.intersect_closest(o[i], d[i], tm[i]);
                     let got = (btri[i] != u32::MAX).then_some((bt[i].to_bits(), btri[i]));
                     assert_eq!(got, want.map(|h| (h.t.to_bits(), h.tri)), "closest ray {i}");
+                    for (level, lt, ltri) in &levels {
+                        let got = (ltri[i] != u32::MAX).then_some((lt[i].to_bits(), ltri[i]));
+                        let want = want.map(|h| (h.t.to_bits(), h.tri));
+                        assert_eq!(got, want, "closest ray {i}, batch at {level:?}");
+                    }
                     if want.is_none() {
                         assert_eq!(bt[i], f32::INFINITY);
                     }

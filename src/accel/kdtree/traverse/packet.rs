@@ -14,7 +14,6 @@ use glam::Vec3;
 use super::hit4::PacketTest;
 use super::interval::step;
 use super::ray::Ray;
-use super::single::Entry;
 use super::visit::Visitor;
 use super::{KdAccel, LANES};
 use crate::accel::kdtree::MAX_DEPTH;
@@ -237,9 +236,14 @@ impl KdAccel {
                     near_far(e.node + 1, n.right())
                 } else if near_left == 0 {
                     near_far(n.right(), e.node + 1)
-                } else if V::ORDER_FREE {
-                    // Orient each lane's children as left/right; visit the lowest live lane's
-                    // near side first (the order does not change any-hit answers).
+                } else {
+                    // Lanes disagree on the near child (their origins lie on both sides of
+                    // the plane): orient each lane's children as left/right and visit the
+                    // lowest live lane's near side first. The order does not change any-hit
+                    // answers, nor closest-hit ones: a lane still visits every leaf that
+                    // starts before its best hit (culling only skips entries beyond it), so it
+                    // still meets the leaf holding its closest hit, and keeps the least
+                    // `(t, index)` of what it tests, as the single ray does.
                     let mut left = PacketEntry {
                         node: e.node + 1,
                         mask: (near_left & go_near) | (!near_left & go_far & m),
@@ -264,21 +268,6 @@ impl KdAccel {
                     } else {
                         (right, left)
                     }
-                } else {
-                    // Lanes disagree on the near child: each finishes this subtree alone.
-                    for k in 0..LANES {
-                        if m & (1 << k) != 0 {
-                            let one = Entry {
-                                node: e.node,
-                                t0: e.t0[k],
-                                t1: e.t1[k],
-                            };
-                            if self.walk(&rays[k], one, &mut v[k]) {
-                                done |= 1 << k;
-                            }
-                        }
-                    }
-                    break None;
                 };
                 if near.mask != 0 && far.mask != 0 {
                     if sp < stack.len() {

@@ -13,9 +13,6 @@ use crate::geometry::triangle::TriangleRay;
 pub(super) trait Visitor {
     /// The query's answer for one ray.
     type Out: Copy;
-    /// True when the answer does not depend on the order leaves are visited in (no culling:
-    /// any-hit), so a packet may visit children in any order.
-    const ORDER_FREE: bool;
     /// A visitor for a ray with parameter bound `t_max` that has seen nothing yet.
     fn new(t_max: f32) -> Self;
     /// Tests `ray` against the leaf entries `start..end` of `tris` (vertices in leaf order)
@@ -47,24 +44,8 @@ pub(super) struct Closest {
     best: Option<TriHit>,
 }
 
-impl Closest {
-    /// A closest-hit visitor that already holds `best` (a lane handed from a frustum to the
-    /// single-ray loop).
-    #[inline(always)]
-    pub(super) fn resume(t_max: f32, best: Option<TriHit>) -> Closest {
-        Closest { t_max, best }
-    }
-
-    /// The best hit so far.
-    #[inline(always)]
-    pub(super) fn best(&self) -> Option<TriHit> {
-        self.best
-    }
-}
-
 impl Visitor for Closest {
     type Out = Option<TriHit>;
-    const ORDER_FREE: bool = false;
 
     #[inline(always)]
     fn new(t_max: f32) -> Closest {
@@ -130,7 +111,6 @@ pub(super) struct Occluded {
 
 impl Visitor for Occluded {
     type Out = bool;
-    const ORDER_FREE: bool = true;
 
     #[inline(always)]
     fn new(t_max: f32) -> Occluded {
