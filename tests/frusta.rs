@@ -24,14 +24,7 @@ fn check(
         .enumerate()
         .for_each(|(c, (t, tri))| {
             let r = c * chunk..c * chunk + t.len();
-            tree.intersect_closest_batch_at(
-                level,
-                &o[r.clone()],
-                &d[r.clone()],
-                &tm[r],
-                t,
-                tri,
-            );
+            tree.intersect_closest_batch_at(level, &o[r.clone()], &d[r.clone()], &tm[r], t, tri);
         });
     for i in 0..n {
         assert_eq!(

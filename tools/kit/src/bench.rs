@@ -913,21 +913,15 @@ fn mirror_reflections(
     let Some(spec) = scene.meshes.first() else {
         return Ok(());
     };
-    let mut mesh = TriangleMesh::load_obj(&spec.path).map_err(|e| {
-        BenchError::Peer(format!(
-            "mirror set: {}",
-            wavefront::error::chain(&e)
-        ))
-    })?;
+    let mut mesh = TriangleMesh::load_obj(&spec.path)
+        .map_err(|e| BenchError::Peer(format!("mirror set: {}", wavefront::error::chain(&e))))?;
     let (lo, hi) = mesh.bounds();
     // The floor: the 2nd percentile of the camera rays' hit heights (world `y`), raised by 1%
     // of the mesh's height so the mirror covers it.
     let eye_y = scene.camera.eye.y as f32;
     let mut heights: Vec<f32> = (0..camera.rays.len())
         .filter(|&i| camera.closest.prim[i].is_hit())
-        .map(|i| {
-            (camera.rays.origin[i] + camera.rays.direction[i] * camera.closest.t[i]).y + eye_y
-        })
+        .map(|i| (camera.rays.origin[i] + camera.rays.direction[i] * camera.closest.t[i]).y + eye_y)
         .collect();
     if heights.is_empty() {
         return Ok(());

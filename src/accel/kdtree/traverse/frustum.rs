@@ -115,6 +115,10 @@ struct Frustum {
     limit: [f32; WIDE],
     /// Cull distance (`Closest::cull`).
     cull: [f32; WIDE],
+    /// Lane steps taken (whole-frustum node steps that needed lane work), over the batch.
+    steps: u64,
+    /// Live lanes summed over those steps: `step_lanes / (steps · WIDE)` is the lane occupancy.
+    step_lanes: u64,
 }
 
 /// Scratch space of a batch of frusta, allocated once per batch.
@@ -156,6 +160,8 @@ impl FrustumScratch {
                 best_tri: [0; WIDE],
                 limit: [0.0; WIDE],
                 cull: [0.0; WIDE],
+                steps: 0,
+                step_lanes: 0,
             },
             stack: [WideEntry::default(); STACK],
             tmp: [[0.0; WIDE]; 3],
@@ -365,7 +371,8 @@ fn one_sided(
 impl KdAccel {
     /// Closest hits of a batch whose rays all share one origin, traced as frusta (see the module
     /// docs); `G` lanes per SIMD step. Returns false (and writes nothing) when the batch is not
-    /// such a batch or too small to be worth regrouping.
+    /// such a batch: too small to be worth regrouping, or rays from many origins that prove too
+    /// incoherent (then it may have written some answers, which the caller overwrites).
     #[inline(always)]
     pub(super) fn closest_frusta<const G: usize>(
         &self,
@@ -380,6 +387,8 @@ impl KdAccel {
         if n < 2 * WIDE {
             return false;
         }
+        let o = origins[0].to_array().map(f32::to_bits);
+        let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
         self.regroup(dirs, scratch);
         let FrustumScratch {
             f,
@@ -390,8 +399,16 @@ impl KdAccel {
             ..
         } = scratch;
         // `order` lists the rays permutation by permutation (invalid rays last), tile by tile.
+        f.steps = 0;
+        f.step_lanes = 0;
         let mut i = 0;
         while i < n {
+            // Rays from many origins (reflections) can be too incoherent for frusta: after the
+            // first two, if the lane steps kept fewer than 2/5 of their lanes busy, the batch
+            // goes as 4-ray packets instead (the answers are the same either way).
+            if !shared && i >= 2 * WIDE && f.step_lanes * 5 < f.steps * 2 * WIDE as u64 {
+                return false;
+            }
             let perm = key[order[i] as usize] >> 24;
             let mut end = i + 1;
             while end < n && end < i + WIDE && key[order[end] as usize] >> 24 == perm {
@@ -716,6 +733,8 @@ impl KdAccel {
                 } else {
                     e.lo
                 };
+                f.steps += 1;
+                f.step_lanes += u64::from(m.count_ones());
                 let (mut go_near, mut go_far) = (0u64, 0u64);
                 let [near_t1, far_t0, far_t1] = tmp;
                 for g in 0..groups {
@@ -936,12 +955,7 @@ fn hit_lanes<const G: usize>(
         let cz = sz[j] * c[2];
         let t = (u * az + v * bz + w * cz) / det;
         let live_j = live >> j & 1 != 0;
-        let hit = live_j
-            & !on_edge
-            & !(neg & pos)
-            & (det != 0.0)
-            & (t > 0.0)
-            & (t < limit[j]);
+        let hit = live_j & !on_edge & !(neg & pos) & (det != 0.0) & (t > 0.0) & (t < limit[j]);
         let better = hit & ((t < best_t[j]) | (id < best_tri[j]));
         best_t[j] = if better { t } else { best_t[j] };
         best_tri[j] = if better { id } else { best_tri[j] };
