@@ -1,36 +1,40 @@
-//! Wide packets of rays sharing one origin ("frusta"): camera rays regrouped into screen tiles
-//! and traced [`WIDE`] at a time, 8 lanes per SIMD step (AVX2 and portable) or 16 (AVX-512).
+//! Wide packets of rays ("frusta"): camera rays regrouped into screen tiles and traced [`WIDE`]
+//! at a time, 8 lanes per SIMD step (AVX2 and portable) or 16 (AVX-512).
 //!
 //! Reads the tree's nodes, the accelerator's leaf-ordered triangles and root box, and a batch of
-//! rays (origin, direction, `t_max` columns) whose origins are all the same point; writes each
-//! ray's closest hit into the output columns, row for row (the rays are regrouped for tracing,
-//! never the output).
+//! rays (origin, direction, `t_max` columns); writes each ray's closest hit into the output
+//! columns, row for row (the rays are regrouped for tracing, never the output).
 //!
-//! **Regrouping** ([`KdAccel::closest_frusta`]). Rays from one eye are keyed by their watertight
-//! test's axis permutation (6 cases) and by their shear `(d[kx]/d[kz], d[ky]/d[kz])`, which is the
-//! ray's point on a plane perpendicular to its dominant axis: for a pinhole camera, a projective
-//! image of its pixel position. A grid over each permutation's shear bounds, with about
-//! [`WIDE`] rays per cell, is a grid of screen tiles (an 8 × 8 pixel tile at one sample per
-//! pixel for a chunk of 8 image rows); a counting sort orders the rays tile by tile (queue order
-//! inside a tile) and runs of [`WIDE`] consecutive rays become one frustum. Rays whose direction
-//! the watertight test rejects, or whose permutation differs from their frustum's, go one by one.
+//! **Regrouping** ([`KdAccel::closest_frusta`]). Rays are keyed by their watertight test's axis
+//! permutation (6 cases) and by their shear `(d[kx]/d[kz], d[ky]/d[kz])`, the ray's point on a
+//! plane perpendicular to its dominant axis: for a pinhole camera, a projective image of its
+//! pixel position. A grid over each permutation's shear bounds, with about [`WIDE`] rays per
+//! cell, is a grid of screen tiles (an 8 × 8 pixel tile at one sample per pixel for a chunk of 8
+//! image rows); a counting sort orders the rays tile by tile (queue order inside a tile) and runs
+//! of [`WIDE`] consecutive rays become one frustum. Rays whose direction the watertight test
+//! rejects go one by one. A batch from many origins (reflections) goes as frusta only while they
+//! keep at least 2/5 of their lanes busy in the lane steps (measured over the batch after two
+//! frusta); otherwise the caller traces it as 4-ray packets.
 //!
 //! **Traversal** ([`KdAccel::walk_frustum`]). One node fetch per frustum; whole-frustum culling
 //! through the lane mask (a node no lane enters is never fetched, a group of lanes none of which
 //! is live is skipped, 8 or 16 lanes at a time); the entry point of every frustum is found once:
-//! interval arithmetic over the frustum (the shared origin, the lanes' bounds of `1/d`, `δ` and
-//! interval ends) proves, node by node from the root, that every lane goes to the same one child
-//! with its interval unchanged, so those nodes cost a few scalar operations for all [`WIDE`] rays
-//! and no lane work. Elsewhere every lane takes exactly the single-ray step
+//! interval arithmetic over the frustum (the box of the origins, the lanes' bounds of `1/d`, `δ`
+//! and interval ends) proves, node by node from the root, that every lane goes to the same one
+//! child with its interval unchanged, so those nodes cost a few scalar operations for all
+//! [`WIDE`] rays and no lane work. Elsewhere every lane takes exactly the single-ray step
 //! ([`super::interval::step`], written out per lane below so LLVM vectorises it), visits its
 //! leaves in the single ray's order and culls with its own best hit, so answers are bit-identical
-//! to [`KdAccel::intersect_closest`]. Rays sharing an origin agree on the near child of every
-//! node (it is the origin's side) unless the origin lies on the split plane; there, if lanes
-//! disagree, each finishes that subtree with the single-ray loop, as the 4-ray packets do.
+//! to [`KdAccel::intersect_closest`]. Lanes agree on the near child (the origin's side) unless
+//! their origins lie on both sides of the plane (or on it, with opposite direction signs); there
+//! each lane's children are oriented left/right and the lowest live lane's near side goes first.
+//! That order changes no answer: a lane still visits every leaf that starts before its best hit
+//! (culling skips only entries beyond it), so it meets the leaf holding its closest hit, and it
+//! keeps the least `(t, index)` of what it tests, as the single ray does.
 //!
 //! **Triangles**: one triangle against a group of lanes with the watertight test's operations in
-//! the scalar order (the shared origin makes the vertices' offsets scalars), lanes on an edge
-//! retested with the scalar code (its double-precision fallback).
+//! the scalar order, lanes on an edge retested with the scalar code (its double-precision
+//! fallback).
 
 use glam::Vec3;
 
@@ -369,10 +373,10 @@ fn one_sided(
 }
 
 impl KdAccel {
-    /// Closest hits of a batch whose rays all share one origin, traced as frusta (see the module
-    /// docs); `G` lanes per SIMD step. Returns false (and writes nothing) when the batch is not
-    /// such a batch: too small to be worth regrouping, or rays from many origins that prove too
-    /// incoherent (then it may have written some answers, which the caller overwrites).
+    /// Closest hits of a batch traced as frusta (see the module docs); `G` lanes per SIMD step.
+    /// Returns false when the batch is too small to be worth regrouping (then it wrote nothing)
+    /// or its rays come from many origins and prove too incoherent (then it may have written
+    /// some answers, which the caller overwrites).
     #[inline(always)]
     pub(super) fn closest_frusta<const G: usize>(
         &self,

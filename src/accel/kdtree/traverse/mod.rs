@@ -10,6 +10,7 @@
 //!   written once, generic over `f32` and 4 SIMD lanes;
 //! - `visit`: the closest and occluded modes (leaf visit, culling, answer);
 //! - `single`: the single-ray loop; `packet`: the 4-ray packet loop and the batch driver;
+//!   `frustum`: 64-ray frusta for closest-hit batches;
 //!   `hit4`: one triangle against a packet's 4 rays;
 //! - [`crate::simd`]: the SSE2 lanes (the crate's one `unsafe` module).
 //!
@@ -31,13 +32,16 @@
 //! when its (conservative) entry distance is beyond the best hit: ties at leaf boundaries still
 //! find the lowest triangle index among equal-`t` hits.
 //!
-//! Batch queries ([`KdAccel::intersect_closest_batch`], [`KdAccel::intersect_occluded_batch`])
-//! trace groups of 4 consecutive rays with equal direction signs as a packet (Wald 2004 style,
+//! Batch queries: [`KdAccel::intersect_closest_batch`] regroups camera rays into screen tiles
+//! and traces them as 64-ray frusta (`frustum`, 8 or 16 SIMD lanes by [`Level`]);
+//! [`KdAccel::intersect_occluded_batch`], and closest-hit batches the frusta do not suit, trace
+//! groups of 4 consecutive rays with equal direction signs as a packet (Wald 2004 style,
 //! per-lane active mask): one node fetch and one 4-wide step per node for the packet, and each
-//! triangle tested against the live lanes at once. Every lane makes exactly its single ray's
-//! decisions (the same interval step, visiting order and culling; where lanes disagree on the
-//! near child of a closest-hit packet each lane finishes that subtree with the single-ray loop),
-//! so results are bit-identical to the single-ray queries.
+//! triangle tested against the live lanes at once. Every lane takes its single ray's interval
+//! step and culls with its own best hit; where lanes disagree on the near child, the packet
+//! visits both children with their lanes, the lowest live lane's near side first. Results are
+//! bit-identical to the single-ray queries (see `frustum` for why the order changes no
+//! closest hit).
 
 mod frustum;
 mod hit4;
@@ -144,9 +148,9 @@ impl KdAccel {
 
     /// [`KdAccel::intersect_closest`] for many rays: `out_t[i]`, `out_tri[i]` receive ray `i`'s
     /// hit, or `f32::INFINITY` and `u32::MAX` on a miss; any `t_max` per ray, any directions.
-    /// A batch whose rays all share one origin (camera rays) is regrouped into screen tiles and
-    /// traced as wide frusta (`frustum`); other batches go in groups of 4 consecutive rays whose
-    /// directions agree in sign as packets. Compiled for the best SIMD level of the CPU
+    /// The batch is regrouped into screen tiles and traced as 64-ray frusta (camera rays; rays
+    /// from many origins while they stay coherent enough), else in groups of 4 consecutive rays
+    /// whose directions agree in sign as packets. Compiled for the best SIMD level of the CPU
     /// ([`Level::current`]). Results are bit-identical to the single-ray query whatever the path
     /// and level (each lane makes exactly the single ray's decisions, see the module docs).
     /// Panics if the slices' lengths differ.

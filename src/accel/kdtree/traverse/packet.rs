@@ -4,10 +4,10 @@
 //! Reads the tree's nodes, the accelerator's leaf-ordered triangles and root box, and 4 rays
 //! (origin, direction, `t_max` columns); writes one answer per ray through the caller's sink.
 //! One node fetch and one 4-wide interval step per node for the packet, each triangle tested
-//! against the live lanes at once. Every lane makes exactly its single ray's decisions (the
-//! shared [`step`], the same visiting order and culling; where lanes disagree on the near child
-//! of a closest-hit packet each lane finishes that subtree with the single-ray loop), so results
-//! are bit-identical to the single-ray queries.
+//! against the live lanes at once. Every lane takes its single ray's step (the shared [`step`])
+//! and culls with its own visitor; where lanes disagree on the near child the packet visits both
+//! children with their lanes (the lowest live lane's near side first), which changes no answer
+//! (see `frustum`), so results are bit-identical to the single-ray queries.
 
 use glam::Vec3;
 
@@ -119,10 +119,10 @@ impl KdAccel {
     /// The query `V` for 4 rays traced together. Each lane computes its child intervals with
     /// the single-ray step; while all live lanes agree on the near child (always, for rays
     /// sharing an origin) every lane visits its leaves in the single ray's order and culls
-    /// with its own visitor, so answers are identical. Where lanes disagree, an order-free
-    /// (any-hit) packet visits both children with their lanes; otherwise each lane finishes
-    /// that subtree alone with the single-ray loop (a single ray also completes a subtree
-    /// before popping what it pushed earlier), which keeps them identical too.
+    /// with its own visitor, so answers are identical. Where lanes disagree, the packet visits
+    /// both children with their lanes, the lowest live lane's near side first: any-hit answers
+    /// do not depend on the order, and a closest-hit lane still meets every leaf that starts
+    /// before its best hit, so they stay identical too.
     #[inline(never)]
     fn packet<T: PacketTest, V: Visitor>(
         &self,
@@ -187,7 +187,7 @@ impl KdAccel {
         let mut cur = start;
         loop {
             let mut e = cur;
-            // Descend to a leaf (or to a subtree the lanes finish alone).
+            // Descend to a leaf.
             let leaf = loop {
                 let Some(&n) = nodes.get(e.node as usize) else {
                     break None;
