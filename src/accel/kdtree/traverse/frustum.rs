@@ -12,9 +12,10 @@
 //! cell, is a grid of screen tiles (an 8 × 8 pixel tile at one sample per pixel for a chunk of 8
 //! image rows); a counting sort orders the rays tile by tile (queue order inside a tile) and runs
 //! of [`WIDE`] consecutive rays become one frustum. Rays whose direction the watertight test
-//! rejects go one by one. A batch from many origins (reflections) goes as frusta only while they
-//! keep at least 2/5 of their lanes busy in the lane steps (measured over the batch after two
-//! frusta); otherwise the caller traces it as 4-ray packets.
+//! rejects go one by one. A batch from many origins (reflections) goes as frusta of [`NARROW`]
+//! rays (their lanes diverge sooner), and only while they keep at least 2/5 of their lanes busy
+//! in the lane steps (measured over the batch after two frusta); otherwise the caller traces it
+//! as 4-ray packets.
 //!
 //! **Traversal** ([`KdAccel::walk_frustum`]). One node fetch per frustum; whole-frustum culling
 //! through the lane mask (a node no lane enters is never fetched, a group of lanes none of which
@@ -46,6 +47,9 @@ use crate::simd::{bits, max_ps, min_ps};
 
 /// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
 pub(super) const WIDE: usize = 64;
+
+/// Rays per frustum for rays from many origins (reflections): a 4 × 4 tile.
+const NARROW: usize = 16;
 
 /// Stack entries of a frustum: one per tree level.
 const STACK: usize = MAX_DEPTH + 1;
@@ -393,7 +397,9 @@ impl KdAccel {
         }
         let o = origins[0].to_array().map(f32::to_bits);
         let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
-        self.regroup(dirs, scratch);
+        // Frusta from many origins diverge sooner: smaller ones keep more of their lanes busy.
+        let per = if shared { WIDE } else { NARROW };
+        self.regroup(dirs, per, scratch);
         let FrustumScratch {
             f,
             stack,
@@ -410,12 +416,12 @@ impl KdAccel {
             // Rays from many origins (reflections) can be too incoherent for frusta: after the
             // first two, if the lane steps kept fewer than 2/5 of their lanes busy, the batch
             // goes as 4-ray packets instead (the answers are the same either way).
-            if !shared && i >= 2 * WIDE && f.step_lanes * 5 < f.steps * 2 * WIDE as u64 {
+            if !shared && i >= 2 * per && f.step_lanes * 5 < f.steps * 2 * per as u64 {
                 return false;
             }
             let perm = key[order[i] as usize] >> 24;
             let mut end = i + 1;
-            while end < n && end < i + WIDE && key[order[end] as usize] >> 24 == perm {
+            while end < n && end < i + per && key[order[end] as usize] >> 24 == perm {
                 end += 1;
             }
             let rows = &order[i..end];
@@ -446,10 +452,11 @@ impl KdAccel {
             .map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri))
     }
 
-    /// Keys every ray by (watertight permutation, shear cell) and counting-sorts them into
-    /// `scratch.order`; `scratch.key[i] >> 24` is ray `i`'s permutation (6: a direction the
-    /// watertight test rejects, or close to it: such rays go one by one).
-    fn regroup(&self, dirs: &[Vec3], scratch: &mut FrustumScratch) {
+    /// Keys every ray by (watertight permutation, shear cell, about `per` rays per cell) and
+    /// counting-sorts them into `scratch.order`; `scratch.key[i] >> 24` is ray `i`'s
+    /// permutation (6: a direction the watertight test rejects, or close to it: such rays go one
+    /// by one).
+    fn regroup(&self, dirs: &[Vec3], per: usize, scratch: &mut FrustumScratch) {
         let n = dirs.len();
         let key = &mut scratch.key;
         let shear = &mut scratch.shear;
@@ -488,11 +495,11 @@ impl KdAccel {
                 hi[p] = [hi[p][0].max(sh[0]), hi[p][1].max(sh[1])];
             }
         }
-        // A grid of about `count / WIDE` cells per permutation, shaped like its shear bounds.
+        // A grid of about `count / per` cells per permutation, shaped like its shear bounds.
         let mut grid = [(1u32, 1u32, 0.0f32, 0.0f32); 6];
         let mut base = [0u32; 8];
         for p in 0..6 {
-            let cells = count[p].div_ceil(WIDE).max(1) as f32;
+            let cells = count[p].div_ceil(per).max(1) as f32;
             let (rx, ry) = (hi[p][0] - lo[p][0], hi[p][1] - lo[p][1]);
             let aspect = if ry > 0.0 && rx > 0.0 { rx / ry } else { 1.0 };
             let gx = if ry > 0.0 {
