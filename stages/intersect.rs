@@ -50,20 +50,27 @@ crate::column_set! {
     }
 }
 
-/// Closest hit of every ray (one row per ray). Chunks of rays go through
-/// [`World::intersect_closest_batch`] (packets of consecutive, coherent rays).
+/// Rays per call of [`World::intersect_closest_batch`]: 8 rows of a 512-pixel-wide image at one
+/// sample per pixel, so the kD tree can regroup camera rays into 8 × 8 pixel tiles.
+pub const TRACE_CHUNK: usize = 4 * MIN_CHUNK;
+
+/// Closest hit of every ray (one row per ray). Chunks of up to [`TRACE_CHUNK`] rays go through
+/// [`World::intersect_closest_batch`] (camera rays as frusta of screen tiles, others as packets
+/// of consecutive, coherent rays).
 pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
     let n = rays.origin.len();
     out.t.clear();
     out.t.resize(n, f32::INFINITY);
     out.prim.clear();
     out.prim.resize(n, PrimId::NONE);
+    // Small queues in smaller chunks, so every thread gets some (answers do not depend on it).
+    let chunk = TRACE_CHUNK.min((n / (4 * rayon::current_num_threads())).max(MIN_CHUNK));
     out.t
-        .par_chunks_mut(MIN_CHUNK)
-        .zip(out.prim.par_chunks_mut(MIN_CHUNK))
+        .par_chunks_mut(chunk)
+        .zip(out.prim.par_chunks_mut(chunk))
         .enumerate()
         .for_each(|(c, (t, prim))| {
-            let r = c * MIN_CHUNK..c * MIN_CHUNK + t.len();
+            let r = c * chunk..c * chunk + t.len();
             world.intersect_closest_batch(
                 &rays.origin[r.clone()],
                 &rays.direction[r.clone()],

@@ -866,6 +866,9 @@ fn peers(
             }
         }
     }
+    if let Some(depth0) = snapshot.depth(0) {
+        mirror_reflections(scene, depth0, repeat, threads, &config, &mut rows, report)?;
+    }
     for r in &rows {
         if r.mismatches.is_some_and(|m| m > 0) {
             report.notes.push(format!(
@@ -879,6 +882,129 @@ fn peers(
         }
     }
     report.peers = rows;
+    Ok(())
+}
+
+/// The incoherent closest-hit set: the scene's mesh with a mirror floor added (two triangles
+/// spanning the mesh's horizontal extent, 1% of its height above the floor the camera sees), the
+/// snapshot's camera rays traced against it, and at every camera ray that hits the mirror a
+/// reflection ray (origin on the mirror, nudged up by 1e-4 of the scene's extent; direction
+/// reflected about the mirror's normal, `+y`; no `t_max`). Times the project's `intersect`
+/// kernel and Embree's `rtcIntersect1` / `rtcIntersect1M` on those rays in the same run and
+/// adds peer rows (depth 1, peer names `embree-reflect1`, `embree-reflect1m`).
+#[cfg(feature = "embree")]
+fn mirror_reflections(
+    scene: &Scene,
+    camera: &DepthSnapshot,
+    repeat: usize,
+    threads: usize,
+    config: &str,
+    rows: &mut Vec<Record>,
+    report: &mut Report,
+) -> Result<(), BenchError> {
+    use crate::peer::embree::{EmbreeScene, TraceOpts};
+    use bytemuck::cast_slice;
+    use glam::Vec3;
+    use wavefront::accel::kdtree::BuildMethod;
+    use wavefront::mesh::TriangleMesh;
+    use wavefront::queue::{RayItem, SampleSlot};
+    use wavefront::stages::intersect::{ClosestOut, ClosestRays, intersect_closest};
+
+    let Some(spec) = scene.meshes.first() else {
+        return Ok(());
+    };
+    let mut mesh = TriangleMesh::load_obj(&spec.path)
+        .map_err(|e| BenchError::Peer(format!("mirror set: {}", wavefront::error::chain(&e))))?;
+    let (lo, hi) = mesh.bounds();
+    // The floor: the 2nd percentile of the camera rays' hit heights (world `y`), raised by 1%
+    // of the mesh's height so the mirror covers it.
+    let eye_y = scene.camera.eye.y as f32;
+    let mut heights: Vec<f32> = (0..camera.rays.len())
+        .filter(|&i| camera.closest.prim[i].is_hit())
+        .map(|i| (camera.rays.origin[i] + camera.rays.direction[i] * camera.closest.t[i]).y + eye_y)
+        .collect();
+    if heights.is_empty() {
+        return Ok(());
+    }
+    heights.sort_by(f32::total_cmp);
+    let y = heights[heights.len() / 50] + 0.01 * (hi.y - lo.y);
+    let base = mesh.vertices.len() as u32;
+    mesh.vertices.extend([
+        [lo.x, y, lo.z],
+        [hi.x, y, lo.z],
+        [hi.x, y, hi.z],
+        [lo.x, y, hi.z],
+    ]);
+    let mirror = [mesh.len() as u32, mesh.len() as u32 + 1];
+    mesh.indices
+        .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
+    let world = World::with_mesh(scene, &mesh, BuildMethod::Sah);
+    let Some(tris) = world.triangles() else {
+        return Ok(());
+    };
+    let (v, idx) = (&tris.mesh().vertices, &tris.mesh().indices);
+    let mirror_y = v[base as usize][1];
+    let nudge = 1e-4 * (hi - lo).max_element();
+    // Camera rays against the mirrored scene; reflection rays where they meet the mirror.
+    let mut hits = HitColumns::default();
+    intersect_closest(
+        &world,
+        ClosestRays::of(&camera.rays),
+        ClosestOut::of(&mut hits),
+    );
+    let mut rays = RayQueue::default();
+    for i in 0..camera.rays.len() {
+        if !mirror.contains(&hits.prim[i].0) {
+            continue;
+        }
+        let (o, d) = (camera.rays.origin[i], camera.rays.direction[i]);
+        let p = o + d * hits.t[i];
+        rays.push(RayItem {
+            origin: Vec3::new(p.x, mirror_y + nudge, p.z),
+            direction: Vec3::new(d.x, -d.y, d.z),
+            t_max: f32::INFINITY,
+            weight: Vec3::ONE,
+            slot: SampleSlot(i as u32),
+        });
+    }
+    let n = rays.len();
+    if n == 0 {
+        report
+            .notes
+            .push("mirror reflections: no camera ray hits the mirror floor".into());
+        return Ok(());
+    }
+    let mut ours = HitColumns::default();
+    let s_ours = best_of(repeat, || {
+        intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut ours))
+    });
+    let ours_mrays = mrays_per_s(n, s_ours);
+    let embree = EmbreeScene::with_config(v, idx, config).map_err(BenchError::Peer)?;
+    let opts = TraceOpts::parallel();
+    let (o, dir) = (cast_slice(&rays.origin), cast_slice(&rays.direction));
+    let (mut t, mut prim) = (vec![0.0; n], vec![0u32; n]);
+    for (name, stream) in [("embree-reflect1", false), ("embree-reflect1m", true)] {
+        let s = best_of(repeat, || {
+            if stream {
+                embree.intersect1m_with(opts, o, dir, &rays.t_max, &mut t, &mut prim)
+            } else {
+                embree.intersect1_with(opts, o, dir, &rays.t_max, &mut t, &mut prim)
+            }
+        });
+        let mut r = Record::new(&scene.name, Stage::Intersect, 1, threads, n, s);
+        r.peer = Some(name.into());
+        r.project_mrays_per_s = Some(ours_mrays);
+        r.ratio = Some(ours_mrays / r.mrays_per_s);
+        let c = compare_closest(&ours, &t, &prim);
+        (r.mismatches, r.hit_miss, r.ties) = (Some(c.mismatches), Some(c.hit_miss), Some(c.ties));
+        rows.push(r);
+    }
+    let hit = ours.prim.iter().filter(|p| p.is_hit()).count();
+    report.notes.push(format!(
+        "embree-reflect rows: {n} reflection rays off a mirror floor added to the mesh \
+         (of {} camera rays), {hit} of them hit; project {ours_mrays:.1} Mrays/s",
+        camera.rays.len()
+    ));
     Ok(())
 }
 

@@ -10,6 +10,7 @@
 //!   written once, generic over `f32` and 4 SIMD lanes;
 //! - `visit`: the closest and occluded modes (leaf visit, culling, answer);
 //! - `single`: the single-ray loop; `packet`: the 4-ray packet loop and the batch driver;
+//!   `frustum`: 64-ray frusta for closest-hit batches;
 //!   `hit4`: one triangle against a packet's 4 rays;
 //! - [`crate::simd`]: the SSE2 lanes (the crate's one `unsafe` module).
 //!
@@ -31,15 +32,19 @@
 //! when its (conservative) entry distance is beyond the best hit: ties at leaf boundaries still
 //! find the lowest triangle index among equal-`t` hits.
 //!
-//! Batch queries ([`KdAccel::intersect_closest_batch`], [`KdAccel::intersect_occluded_batch`])
-//! trace groups of 4 consecutive rays with equal direction signs as a packet (Wald 2004 style,
+//! Batch queries: [`KdAccel::intersect_closest_batch`] regroups camera rays into screen tiles
+//! and traces them as 64-ray frusta (`frustum`, 8 or 16 SIMD lanes by [`Level`]);
+//! [`KdAccel::intersect_occluded_batch`], and closest-hit batches the frusta do not suit, trace
+//! groups of 4 consecutive rays with equal direction signs as a packet (Wald 2004 style,
 //! per-lane active mask): one node fetch and one 4-wide step per node for the packet, and each
-//! triangle tested against the live lanes at once. Every lane makes exactly its single ray's
-//! decisions (the same interval step, visiting order and culling; where lanes disagree on the
-//! near child of a closest-hit packet each lane finishes that subtree with the single-ray loop),
-//! so results are bit-identical to the single-ray queries.
+//! triangle tested against the live lanes at once. Every lane takes its single ray's interval
+//! step and culls with its own best hit; where lanes disagree on the near child, the packet
+//! visits both children with their lanes, the lowest live lane's near side first. Results are
+//! bit-identical to the single-ray queries (see `frustum` for why the order changes no
+//! closest hit).
 
 mod bundle;
+mod frustum;
 mod hit4;
 mod interval;
 mod packet;
@@ -55,8 +60,8 @@ use super::{KdTree, TriHit, exact_root};
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
 use crate::scene::TriangleTest;
-use crate::simd::Level;
 pub use bundle::BundleCounts;
+use crate::simd::{Kernel, Level, dispatch};
 use visit::{Closest, Occluded};
 
 /// Rays per packet.
@@ -151,10 +156,13 @@ impl KdAccel {
     }
 
     /// [`KdAccel::intersect_closest`] for many rays: `out_t[i]`, `out_tri[i]` receive ray `i`'s
-    /// hit, or `f32::INFINITY` and `u32::MAX` on a miss. Groups of 4 consecutive rays whose
-    /// directions agree in sign are traced as a packet; results are bit-identical to the
-    /// single-ray query (each lane makes exactly the single ray's decisions, see the module
-    /// docs). Panics if the slices' lengths differ.
+    /// hit, or `f32::INFINITY` and `u32::MAX` on a miss; any `t_max` per ray, any directions.
+    /// The batch is regrouped into screen tiles and traced as 64-ray frusta (camera rays; rays
+    /// from many origins while they stay coherent enough), else in groups of 4 consecutive rays
+    /// whose directions agree in sign as packets. Compiled for the best SIMD level of the CPU
+    /// ([`Level::current`]). Results are bit-identical to the single-ray query whatever the path
+    /// and level (each lane makes exactly the single ray's decisions, see the module docs).
+    /// Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
         origins: &[Vec3],
@@ -163,10 +171,33 @@ impl KdAccel {
         out_t: &mut [f32],
         out_tri: &mut [u32],
     ) {
-        assert!(out_t.len() == origins.len() && out_tri.len() == origins.len());
-        self.batch::<WatertightRay, Closest>(origins, dirs, t_max, false, |i, h| {
-            (out_t[i], out_tri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
-        });
+        self.intersect_closest_batch_at(Level::current(), origins, dirs, t_max, out_t, out_tri);
+    }
+
+    /// [`KdAccel::intersect_closest_batch`] compiled for `level` (or the best supported level
+    /// below it): for tests and benchmarks comparing levels. Same answers at every level.
+    pub fn intersect_closest_batch_at(
+        &self,
+        level: Level,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out_t: &mut [f32],
+        out_tri: &mut [u32],
+    ) {
+        let n = origins.len();
+        assert!(dirs.len() == n && t_max.len() == n && out_t.len() == n && out_tri.len() == n);
+        dispatch(
+            level,
+            ClosestBatch {
+                accel: self,
+                origins,
+                dirs,
+                t_max,
+                out_t,
+                out_tri,
+            },
+        );
     }
 
     /// [`KdAccel::intersect_occluded`] for many rays into `out`, identical to it ray for ray.
@@ -214,6 +245,60 @@ impl KdAccel {
         match test {
             TriangleTest::Watertight => self.query::<WatertightRay, V>(origin, dir, t_max),
             TriangleTest::MollerTrumbore => self.query::<MollerTrumboreRay, V>(origin, dir, t_max),
+        }
+    }
+}
+
+/// The closest-hit batch as a [`Kernel`]: compiled once per SIMD level.
+struct ClosestBatch<'a> {
+    /// The accelerator.
+    accel: &'a KdAccel,
+    /// Ray origins.
+    origins: &'a [Vec3],
+    /// Ray directions.
+    dirs: &'a [Vec3],
+    /// Per-ray bounds.
+    t_max: &'a [f32],
+    /// Hit distances out.
+    out_t: &'a mut [f32],
+    /// Hit triangles out.
+    out_tri: &'a mut [u32],
+}
+
+impl Kernel for ClosestBatch<'_> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run(self, level: Level) {
+        let ClosestBatch {
+            accel,
+            origins,
+            dirs,
+            t_max,
+            out_t,
+            out_tri,
+        } = self;
+        // One scratch space per thread, reused by every batch it traces.
+        thread_local! {
+            static SCRATCH: std::cell::RefCell<Option<Box<frustum::FrustumScratch>>> =
+                const { std::cell::RefCell::new(None) };
+        }
+        // (Taken out and put back rather than used inside `with_borrow_mut`: a closure would be
+        // compiled apart from this function, without its SIMD level.)
+        let mut scratch = SCRATCH
+            .with_borrow_mut(Option::take)
+            .unwrap_or_else(frustum::FrustumScratch::new);
+        let wide = match level {
+            Level::Avx512 => {
+                accel.closest_frusta::<16>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
+            }
+            _ => accel.closest_frusta::<8>(origins, dirs, t_max, out_t, out_tri, &mut scratch),
+        };
+        SCRATCH.with_borrow_mut(|cached| *cached = Some(scratch));
+        if !wide {
+            accel.batch::<WatertightRay, Closest>(origins, dirs, t_max, false, |i, h| {
+                (out_t[i], out_tri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
+            });
         }
     }
 }
@@ -432,11 +517,24 @@ mod tests {
                     (bt[i], btri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
                 });
                 tree.batch::<WatertightRay, Occluded>(&o, &d, &tm, force, |i, x| occ[i] = x);
+                // The batch entry: frusta of the regrouped rays (incoherent origins and
+                // directions here), at every SIMD level.
+                let mut levels = vec![];
+                for level in crate::simd::Level::supported() {
+                    let (mut lt, mut ltri) = (vec![0.0; n], vec![0; n]);
+                    tree.intersect_closest_batch_at(level, &o, &d, &tm, &mut lt, &mut ltri);
+                    levels.push((level, lt, ltri));
+                }
                 let mut hits = 0;
                 for i in 0..n {
                     let want = tree.intersect_closest(o[i], d[i], tm[i]);
                     let got = (btri[i] != u32::MAX).then_some((bt[i].to_bits(), btri[i]));
                     assert_eq!(got, want.map(|h| (h.t.to_bits(), h.tri)), "closest ray {i}");
+                    for (level, lt, ltri) in &levels {
+                        let got = (ltri[i] != u32::MAX).then_some((lt[i].to_bits(), ltri[i]));
+                        let want = want.map(|h| (h.t.to_bits(), h.tri));
+                        assert_eq!(got, want, "closest ray {i}, batch at {level:?}");
+                    }
                     if want.is_none() {
                         assert_eq!(bt[i], f32::INFINITY);
                     }

@@ -4,17 +4,16 @@
 //! Reads the tree's nodes, the accelerator's leaf-ordered triangles and root box, and 4 rays
 //! (origin, direction, `t_max` columns); writes one answer per ray through the caller's sink.
 //! One node fetch and one 4-wide interval step per node for the packet, each triangle tested
-//! against the live lanes at once. Every lane makes exactly its single ray's decisions (the
-//! shared [`step`], the same visiting order and culling; where lanes disagree on the near child
-//! of a closest-hit packet each lane finishes that subtree with the single-ray loop), so results
-//! are bit-identical to the single-ray queries.
+//! against the live lanes at once. Every lane takes its single ray's step (the shared [`step`])
+//! and culls with its own visitor; where lanes disagree on the near child the packet visits both
+//! children with their lanes (the lowest live lane's near side first), which changes no answer
+//! (see `frustum`), so results are bit-identical to the single-ray queries.
 
 use glam::Vec3;
 
 use super::hit4::PacketTest;
 use super::interval::step;
 use super::ray::Ray;
-use super::single::Entry;
 use super::visit::Visitor;
 use super::{KdAccel, LANES};
 use crate::accel::kdtree::MAX_DEPTH;
@@ -120,10 +119,10 @@ impl KdAccel {
     /// The query `V` for 4 rays traced together. Each lane computes its child intervals with
     /// the single-ray step; while all live lanes agree on the near child (always, for rays
     /// sharing an origin) every lane visits its leaves in the single ray's order and culls
-    /// with its own visitor, so answers are identical. Where lanes disagree, an order-free
-    /// (any-hit) packet visits both children with their lanes; otherwise each lane finishes
-    /// that subtree alone with the single-ray loop (a single ray also completes a subtree
-    /// before popping what it pushed earlier), which keeps them identical too.
+    /// with its own visitor, so answers are identical. Where lanes disagree, the packet visits
+    /// both children with their lanes, the lowest live lane's near side first: any-hit answers
+    /// do not depend on the order, and a closest-hit lane still meets every leaf that starts
+    /// before its best hit, so they stay identical too.
     #[inline(never)]
     fn packet<T: PacketTest, V: Visitor>(
         &self,
@@ -188,7 +187,7 @@ impl KdAccel {
         let mut cur = start;
         loop {
             let mut e = cur;
-            // Descend to a leaf (or to a subtree the lanes finish alone).
+            // Descend to a leaf.
             let leaf = loop {
                 let Some(&n) = nodes.get(e.node as usize) else {
                     break None;
@@ -237,9 +236,14 @@ impl KdAccel {
                     near_far(e.node + 1, n.right())
                 } else if near_left == 0 {
                     near_far(n.right(), e.node + 1)
-                } else if V::ORDER_FREE {
-                    // Orient each lane's children as left/right; visit the lowest live lane's
-                    // near side first (the order does not change any-hit answers).
+                } else {
+                    // Lanes disagree on the near child (their origins lie on both sides of
+                    // the plane): orient each lane's children as left/right and visit the
+                    // lowest live lane's near side first. The order does not change any-hit
+                    // answers, nor closest-hit ones: a lane still visits every leaf that
+                    // starts before its best hit (culling only skips entries beyond it), so it
+                    // still meets the leaf holding its closest hit, and keeps the least
+                    // `(t, index)` of what it tests, as the single ray does.
                     let mut left = PacketEntry {
                         node: e.node + 1,
                         mask: (near_left & go_near) | (!near_left & go_far & m),
@@ -264,21 +268,6 @@ impl KdAccel {
                     } else {
                         (right, left)
                     }
-                } else {
-                    // Lanes disagree on the near child: each finishes this subtree alone.
-                    for k in 0..LANES {
-                        if m & (1 << k) != 0 {
-                            let one = Entry {
-                                node: e.node,
-                                t0: e.t0[k],
-                                t1: e.t1[k],
-                            };
-                            if self.walk(&rays[k], one, &mut v[k]) {
-                                done |= 1 << k;
-                            }
-                        }
-                    }
-                    break None;
                 };
                 if near.mask != 0 && far.mask != 0 {
                     if sp < stack.len() {

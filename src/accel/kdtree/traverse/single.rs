@@ -51,9 +51,7 @@ impl KdAccel {
 
     /// Front-to-back traversal of the subtree `start.node` over the ray interval
     /// `start.t0..start.t1`; returns true if the visitor asked to stop. A whole-tree traversal
-    /// is `walk` from the root; the packet loop also calls it to finish one lane of a subtree
-    /// exactly as a single ray would (a single ray processes a subtree it enters completely
-    /// before popping anything pushed earlier).
+    /// is `walk` from the root.
     #[inline(always)]
     pub(super) fn walk<T: TriangleRay, V: Visitor>(
         &self,

@@ -13,9 +13,6 @@ use crate::geometry::triangle::TriangleRay;
 pub(super) trait Visitor {
     /// The query's answer for one ray.
     type Out: Copy;
-    /// True when the answer does not depend on the order leaves are visited in (no culling:
-    /// any-hit), so a packet may visit children in any order.
-    const ORDER_FREE: bool;
     /// A visitor for a ray with parameter bound `t_max` that has seen nothing yet.
     fn new(t_max: f32) -> Self;
     /// Tests `ray` against the leaf entries `start..end` of `tris` (vertices in leaf order)
@@ -49,7 +46,6 @@ pub(super) struct Closest {
 
 impl Visitor for Closest {
     type Out = Option<TriHit>;
-    const ORDER_FREE: bool = false;
 
     #[inline(always)]
     fn new(t_max: f32) -> Closest {
@@ -115,7 +111,6 @@ pub(super) struct Occluded {
 
 impl Visitor for Occluded {
     type Out = bool;
-    const ORDER_FREE: bool = true;
 
     #[inline(always)]
     fn new(t_max: f32) -> Occluded {

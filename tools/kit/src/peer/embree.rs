@@ -976,7 +976,7 @@ mod tests {
     fn sibenik_primary(n: u32) -> (Vec<[f32; 3]>, Vec<[f32; 3]>) {
         let camera = wavefront::scene::builtin::sibenik(false).camera;
         let dirs = camera.pixel_centre_directions(n, n);
-        let eye = camera.eye.to_array();
+        let eye = camera.eye.as_vec3().to_array();
         (
             vec![eye; dirs.len()],
             dirs.iter().map(|d| d.to_array()).collect(),

@@ -1,0 +1,986 @@
+//! Wide packets of rays ("frusta"): camera rays regrouped into screen tiles and traced [`WIDE`]
+//! at a time, 8 lanes per SIMD step (AVX2 and portable) or 16 (AVX-512).
+//!
+//! Reads the tree's nodes, the accelerator's leaf-ordered triangles and root box, and a batch of
+//! rays (origin, direction, `t_max` columns); writes each ray's closest hit into the output
+//! columns, row for row (the rays are regrouped for tracing, never the output).
+//!
+//! **Regrouping** ([`KdAccel::closest_frusta`]). Rays are keyed by their watertight test's axis
+//! permutation (6 cases) and by their shear `(d[kx]/d[kz], d[ky]/d[kz])`, the ray's point on a
+//! plane perpendicular to its dominant axis: for a pinhole camera, a projective image of its
+//! pixel position. A grid over each permutation's shear bounds, with about [`WIDE`] rays per
+//! cell, is a grid of screen tiles (an 8 × 8 pixel tile at one sample per pixel for a chunk of 8
+//! image rows); a counting sort orders the rays tile by tile (queue order inside a tile) and runs
+//! of [`WIDE`] consecutive rays become one frustum. Rays whose direction the watertight test
+//! rejects go one by one. A batch from many origins (reflections) goes as frusta of [`NARROW`]
+//! rays (their lanes diverge sooner), and only while they keep at least 2/5 of their lanes busy
+//! in the lane steps (measured over the batch after two frusta); otherwise the caller traces it
+//! as 4-ray packets.
+//!
+//! **Traversal** ([`KdAccel::walk_frustum`]). One node fetch per frustum; whole-frustum culling
+//! through the lane mask (a node no lane enters is never fetched, a group of lanes none of which
+//! is live is skipped, 8 or 16 lanes at a time); the entry point of every frustum is found once:
+//! interval arithmetic over the frustum (the box of the origins, the lanes' bounds of `1/d`, `δ`
+//! and interval ends) proves, node by node from the root, that every lane goes to the same one
+//! child with its interval unchanged, so those nodes cost a few scalar operations for all
+//! [`WIDE`] rays and no lane work. Elsewhere every lane takes exactly the single-ray step
+//! ([`super::interval::step`], written out per lane below so LLVM vectorises it), visits its
+//! leaves in the single ray's order and culls with its own best hit, so answers are bit-identical
+//! to [`KdAccel::intersect_closest`]. Lanes agree on the near child (the origin's side) unless
+//! their origins lie on both sides of the plane (or on it, with opposite direction signs); there
+//! each lane's children are oriented left/right and the lowest live lane's near side goes first.
+//! That order changes no answer: a lane still visits every leaf that starts before its best hit
+//! (culling skips only entries beyond it), so it meets the leaf holding its closest hit, and it
+//! keeps the least `(t, index)` of what it tests, as the single ray does.
+//!
+//! **Triangles**: one triangle against a group of lanes with the watertight test's operations in
+//! the scalar order, lanes on an edge retested with the scalar code (its double-precision
+//! fallback).
+
+use glam::Vec3;
+
+use super::KdAccel;
+use super::interval::{DELTA, HI};
+use crate::accel::kdtree::MAX_DEPTH;
+use crate::geometry::triangle::WatertightRay;
+use crate::simd::{bits, max_ps, min_ps};
+
+/// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
+pub(super) const WIDE: usize = 64;
+
+/// Rays per frustum for rays from many origins (reflections): a 4 × 4 tile.
+const NARROW: usize = 16;
+
+/// Stack entries of a frustum: one per tree level.
+const STACK: usize = MAX_DEPTH + 1;
+
+/// One pending node of a frustum: its lanes' intervals, the node and the lanes that enter it.
+#[repr(C, align(64))]
+#[derive(Clone, Copy)]
+struct WideEntry {
+    /// Start of each lane's interval inside the node.
+    t0: [f32; WIDE],
+    /// End of each lane's interval inside the node.
+    t1: [f32; WIDE],
+    /// Node index.
+    node: u32,
+    /// Lanes that enter the node (bit `k` = lane `k`).
+    mask: u64,
+    /// Lower bound of `t0` over the live lanes (interval arithmetic).
+    lo: f32,
+    /// Upper bound of `t1` over the live lanes.
+    hi: f32,
+}
+
+impl Default for WideEntry {
+    fn default() -> WideEntry {
+        WideEntry {
+            t0: [0.0; WIDE],
+            t1: [0.0; WIDE],
+            node: 0,
+            mask: 0,
+            lo: 0.0,
+            hi: 0.0,
+        }
+    }
+}
+
+/// A frustum's rays, structure-of-arrays, and each lane's closest-hit state.
+struct Frustum {
+    /// Origins per axis and lane (the 4th axis pads for the 2-bit axis index).
+    org: [[f32; WIDE]; 4],
+    /// Interval-arithmetic bounds of the live lanes' origins, per axis.
+    org_lo: [f32; 4],
+    /// See `org_lo`.
+    org_hi: [f32; 4],
+    /// `1 / d` per axis and lane (4th axis pads).
+    inv: [[f32; WIDE]; 4],
+    /// Per-axis `δ` slack in `t` units, per lane.
+    slack: [[f32; WIDE]; 4],
+    /// Interval-arithmetic bounds over the live lanes, per axis: `1/d` low and high, `δ` high.
+    inv_lo: [f32; 4],
+    /// See `inv_lo`.
+    inv_hi: [f32; 4],
+    /// See `inv_lo`.
+    slack_hi: [f32; 4],
+    /// The watertight test's shared axis permutation (`kx`, `ky`, `kz`).
+    k: [usize; 3],
+    /// Shears `sx`, `sy`, `sz` per lane.
+    sx: [f32; WIDE],
+    /// See `sx`.
+    sy: [f32; WIDE],
+    /// See `sx`.
+    sz: [f32; WIDE],
+    /// Directions (for the single-ray fallbacks).
+    dir: [Vec3; WIDE],
+    /// Each lane's `t_max`.
+    t_max: [f32; WIDE],
+    /// Best hit distance (`∞` before any hit).
+    best_t: [f32; WIDE],
+    /// Best hit's triangle (`u32::MAX` before any hit).
+    best_tri: [u32; WIDE],
+    /// The bound the next triangle is tested with (`Closest::limit`).
+    limit: [f32; WIDE],
+    /// Cull distance (`Closest::cull`).
+    cull: [f32; WIDE],
+    /// Lane steps taken (whole-frustum node steps that needed lane work), over the batch.
+    steps: u64,
+    /// Live lanes summed over those steps: `step_lanes / (steps · WIDE)` is the lane occupancy.
+    step_lanes: u64,
+}
+
+/// Scratch space of a batch of frusta, allocated once per batch.
+pub(super) struct FrustumScratch {
+    /// The frustum being traced.
+    f: Frustum,
+    /// Pending far children.
+    stack: [WideEntry; STACK],
+    /// Step outputs (near `t1`, far `t0`, far `t1`).
+    tmp: [[f32; WIDE]; 3],
+    /// Per-ray sort key, then the rays in tracing order.
+    key: Vec<u32>,
+    /// Rays in tracing order.
+    order: Vec<u32>,
+    /// Each ray's shear, roughly (for the tiling only).
+    shear: Vec<[f32; 2]>,
+}
+
+impl FrustumScratch {
+    /// Empty scratch space (on the heap: about 45 KiB).
+    pub(super) fn new() -> Box<FrustumScratch> {
+        Box::new(FrustumScratch {
+            f: Frustum {
+                org: [[0.0; WIDE]; 4],
+                org_lo: [0.0; 4],
+                org_hi: [0.0; 4],
+                inv: [[0.0; WIDE]; 4],
+                slack: [[0.0; WIDE]; 4],
+                inv_lo: [0.0; 4],
+                inv_hi: [0.0; 4],
+                slack_hi: [0.0; 4],
+                k: [0, 1, 2],
+                sx: [0.0; WIDE],
+                sy: [0.0; WIDE],
+                sz: [0.0; WIDE],
+                dir: [Vec3::ZERO; WIDE],
+                t_max: [0.0; WIDE],
+                best_t: [0.0; WIDE],
+                best_tri: [0; WIDE],
+                limit: [0.0; WIDE],
+                cull: [0.0; WIDE],
+                steps: 0,
+                step_lanes: 0,
+            },
+            stack: [WideEntry::default(); STACK],
+            tmp: [[0.0; WIDE]; 3],
+            key: Vec::new(),
+            order: Vec::new(),
+            shear: Vec::new(),
+        })
+    }
+}
+
+/// A run of rays sharing origin `o` and watertight permutation `perm`, traced as one frustum.
+struct Rows<'a> {
+    /// All the batch's origins.
+    origins: &'a [Vec3],
+    /// Permutation: `2·kz + (d[kz] < 0)`.
+    perm: u32,
+    /// All the batch's directions.
+    dirs: &'a [Vec3],
+    /// All the batch's bounds.
+    t_max: &'a [f32],
+    /// The rows of this frustum (at most [`WIDE`]).
+    rows: &'a [u32],
+}
+
+/// Lanes `g·G .. g·G + G` of `a`.
+#[inline(always)]
+fn lanes<const G: usize, T>(a: &[T; WIDE], g: usize) -> &[T; G] {
+    a[g * G..g * G + G].try_into().expect("group in range")
+}
+
+/// Lanes `g·G .. g·G + G` of `a`, mutably.
+#[inline(always)]
+fn lanes_mut<const G: usize, T>(a: &mut [T; WIDE], g: usize) -> &mut [T; G] {
+    (&mut a[g * G..g * G + G])
+        .try_into()
+        .expect("group in range")
+}
+
+/// The single-ray step ([`super::interval::step`]) for `G` lanes at the plane `split`, origins
+/// `o` on the node's axis: writes the normalised near `t1`, far `t0`, far `t1` and returns the bits
+/// of the lanes entering the near and the far child. All three sign cases are computed and
+/// blended, as the 4-lane step does; each value is the scalar step's, bit for bit.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn step_lanes<const G: usize>(
+    split: f32,
+    o: &[f32; G],
+    inv: &[f32; G],
+    slack: &[f32; G],
+    t0: &[f32; G],
+    t1: &[f32; G],
+    near_t1: &mut [f32; G],
+    far_t0: &mut [f32; G],
+    far_t1: &mut [f32; G],
+) -> (u64, u64) {
+    let mut go_near = [false; G];
+    let mut go_far = [false; G];
+    for j in 0..G {
+        let (a0, a1, sl) = (t0[j], t1[j], slack[j]);
+        let tp = (split - o[j]) * inv[j];
+        let tps = tp + sl;
+        let pos = tp > 0.0;
+        let nonpos = tp <= 0.0;
+        // tp > 0: near [t0, min(t1, tp + δ)], far [max(t0, tp - δ), t1].
+        let p_far_t0 = max_ps(a0, tp - sl);
+        let p_near_t1 = min_ps(a1, tps);
+        let p_skip = (tps * HI) < a0;
+        let p_far = p_far_t0 <= a1 * HI;
+        // tp <= 0: near [t0, t1], far [t0, min(t1, tp + δ)].
+        let q_far_t1 = min_ps(a1, tps);
+        let q_far = a0 <= q_far_t1 * HI;
+        let c_near_t1 = if pos { p_near_t1 } else { a1 };
+        let c_far_t0 = if pos { p_far_t0 } else { a0 };
+        let c_far_t1 = if pos {
+            a1
+        } else if nonpos {
+            q_far_t1
+        } else {
+            a1
+        };
+        let skip = pos & p_skip;
+        let far = if pos {
+            p_far
+        } else if nonpos {
+            q_far
+        } else {
+            true
+        };
+        let both = far & !skip;
+        near_t1[j] = if both { c_near_t1 } else { a1 };
+        far_t0[j] = c_far_t0;
+        far_t1[j] = if both { c_far_t1 } else { a1 };
+        go_near[j] = !skip;
+        go_far[j] = far | skip;
+    }
+    (bits(&go_near), bits(&go_far))
+}
+
+/// The smallest of `a` (`minps` semantics, over every lane: lanes outside an entry's mask hold
+/// either the neutral `+∞` or a value of the node's parent step, so the result is a lower bound
+/// of the live lanes', which is all interval arithmetic needs).
+#[inline(always)]
+fn min_all<const G: usize>(a: &[f32; WIDE]) -> f32 {
+    let mut m = [f32::INFINITY; G];
+    for g in 0..WIDE / G {
+        let x = lanes::<G, f32>(a, g);
+        for j in 0..G {
+            m[j] = min_ps(x[j], m[j]);
+        }
+    }
+    m.into_iter().fold(f32::INFINITY, min_ps)
+}
+
+/// The largest of `a` (see [`min_all`]).
+#[inline(always)]
+fn max_all<const G: usize>(a: &[f32; WIDE]) -> f32 {
+    let mut m = [f32::NEG_INFINITY; G];
+    for g in 0..WIDE / G {
+        let x = lanes::<G, f32>(a, g);
+        for j in 0..G {
+            m[j] = max_ps(x[j], m[j]);
+        }
+    }
+    m.into_iter().fold(f32::NEG_INFINITY, max_ps)
+}
+
+/// Bits of the lanes `k` of `mask` with `t0[k] <= cull[k]` (a NaN `t0` is dropped, as the single
+/// ray drops it).
+#[inline(always)]
+fn not_culled<const G: usize>(t0: &[f32; WIDE], cull: &[f32; WIDE], mask: u64) -> u64 {
+    let mut out = 0u64;
+    for g in 0..WIDE / G {
+        let gm = (mask >> (g * G)) & group_bits::<G>();
+        if gm == 0 {
+            continue;
+        }
+        let (a, c) = (lanes::<G, f32>(t0, g), lanes::<G, f32>(cull, g));
+        let mut keep = [false; G];
+        for j in 0..G {
+            keep[j] = a[j] <= c[j];
+        }
+        out |= (bits(&keep) & gm) << (g * G);
+    }
+    out
+}
+
+/// The low `G` bits.
+#[inline(always)]
+const fn group_bits<const G: usize>() -> u64 {
+    if G >= 64 { u64::MAX } else { (1u64 << G) - 1 }
+}
+
+/// What interval arithmetic tells about one inner node for a whole frustum.
+enum Sided {
+    /// Every live lane goes to the near child only, its interval unchanged.
+    Near,
+    /// Every live lane goes to the far child only, its interval unchanged.
+    Far,
+    /// Lanes must be stepped; `[tp_lo, tp_hi]` bounds their plane distances, or is
+    /// `(-∞, +∞)` when unknown.
+    Step(f32, f32),
+}
+
+/// Interval arithmetic for one inner node over a whole frustum whose lanes agree on the near
+/// side: whether every live lane provably goes to one child only with its interval unchanged
+/// (the step would leave `t0`, `t1` as they are). `[s_lo, s_hi]` bounds the lanes'
+/// `split - origin`, `[inv_lo, inv_hi]` their `1/d`,
+/// `slack_hi` their `δ`, `[lo, hi]` their `t0` and `t1`. Rounding is monotonic, so bounds
+/// computed from bounds with the step's own operations bound the lanes' rounded values; live
+/// lanes keep `t0 <= t1·HI` (every entry test checks it).
+#[inline(always)]
+fn one_sided(
+    s_lo: f32,
+    s_hi: f32,
+    inv_lo: f32,
+    inv_hi: f32,
+    slack_hi: f32,
+    lo: f32,
+    hi: f32,
+) -> Sided {
+    // `tp = s · inv` over the lanes: the exact product of two intervals is extreme at corners,
+    // and rounding is monotonic.
+    let c = [s_lo * inv_lo, s_lo * inv_hi, s_hi * inv_lo, s_hi * inv_hi];
+    if c.iter().any(|x| x.is_nan()) {
+        return Sided::Step(f32::NEG_INFINITY, f32::INFINITY);
+    }
+    let tp_lo = c.into_iter().fold(f32::INFINITY, min_ps);
+    let tp_hi = c.into_iter().fold(f32::NEG_INFINITY, max_ps);
+    if tp_lo > 0.0 {
+        // Every lane in the `tp > 0` case. Far not entered: `max(t0, tp - δ) > t1·HI` holds when
+        // `tp - δ > t1·HI` for every lane (and then `t0 <= t1·HI < tp - δ`: near entered).
+        if tp_lo - slack_hi > hi * HI {
+            return Sided::Near;
+        }
+        // Near skipped: `(tp + δ)·HI < t0`; then `tp - δ < t0`, so the far `t0` stays `t0`.
+        if (tp_hi + slack_hi) * HI < lo {
+            return Sided::Far;
+        }
+    } else if tp_hi <= 0.0 && (tp_hi + slack_hi) * HI < lo {
+        // Every lane in the `tp <= 0` case with the far side not entered:
+        // `t0 > min(t1, tp + δ)·HI` holds when `t0 > (tp + δ)·HI`.
+        return Sided::Near;
+    }
+    Sided::Step(tp_lo, tp_hi)
+}
+
+impl KdAccel {
+    /// Closest hits of a batch traced as frusta (see the module docs); `G` lanes per SIMD step.
+    /// Returns false when the batch is too small to be worth regrouping (then it wrote nothing)
+    /// or its rays come from many origins and prove too incoherent (then it may have written
+    /// some answers, which the caller overwrites).
+    #[inline(always)]
+    pub(super) fn closest_frusta<const G: usize>(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out_t: &mut [f32],
+        out_tri: &mut [u32],
+        scratch: &mut FrustumScratch,
+    ) -> bool {
+        let n = origins.len();
+        if n < 2 * WIDE {
+            return false;
+        }
+        let o = origins[0].to_array().map(f32::to_bits);
+        let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
+        // Frusta from many origins diverge sooner: smaller ones keep more of their lanes busy.
+        let per = if shared { WIDE } else { NARROW };
+        self.regroup(dirs, per, scratch);
+        let FrustumScratch {
+            f,
+            stack,
+            tmp,
+            key,
+            order,
+            ..
+        } = scratch;
+        // `order` lists the rays permutation by permutation (invalid rays last), tile by tile.
+        f.steps = 0;
+        f.step_lanes = 0;
+        let mut i = 0;
+        while i < n {
+            // Rays from many origins (reflections) can be too incoherent for frusta: after the
+            // first two, if the lane steps kept fewer than 2/5 of their lanes busy, the batch
+            // goes as 4-ray packets instead (the answers are the same either way).
+            if !shared && i >= 2 * per && f.step_lanes * 5 < f.steps * 2 * per as u64 {
+                return false;
+            }
+            let perm = key[order[i] as usize] >> 24;
+            let mut end = i + 1;
+            while end < n && end < i + per && key[order[end] as usize] >> 24 == perm {
+                end += 1;
+            }
+            let rows = &order[i..end];
+            if perm >= 6 {
+                for &r in rows {
+                    let r = r as usize;
+                    (out_t[r], out_tri[r]) = self.single_closest(origins[r], dirs[r], t_max[r]);
+                }
+            } else {
+                let rays = Rows {
+                    origins,
+                    perm,
+                    dirs,
+                    t_max,
+                    rows,
+                };
+                self.frustum::<G>(&rays, out_t, out_tri, f, stack, tmp);
+            }
+            i = end;
+        }
+        true
+    }
+
+    /// One ray through the single-ray loop, as the output columns store it.
+    #[inline(always)]
+    fn single_closest(&self, o: Vec3, d: Vec3, t_max: f32) -> (f32, u32) {
+        self.intersect_closest(o, d, t_max)
+            .map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri))
+    }
+
+    /// Keys every ray by (watertight permutation, shear cell, about `per` rays per cell) and
+    /// counting-sorts them into `scratch.order`; `scratch.key[i] >> 24` is ray `i`'s
+    /// permutation (6: a direction the watertight test rejects, or close to it: such rays go one
+    /// by one).
+    fn regroup(&self, dirs: &[Vec3], per: usize, scratch: &mut FrustumScratch) {
+        let n = dirs.len();
+        let key = &mut scratch.key;
+        let shear = &mut scratch.shear;
+        key.clear();
+        key.resize(n, 0);
+        shear.clear();
+        shear.resize(n, [0.0; 2]);
+        // The permutation exactly as `WatertightRay::new` chooses it, and the shear (up to
+        // rounding: it only places the ray in a tile), branch-free so that it vectorises.
+        for ((d, k), sh) in dirs.iter().zip(key.iter_mut()).zip(shear.iter_mut()) {
+            let a = d.abs();
+            let x_max = a.x >= a.y && a.x >= a.z;
+            let y_max = a.y >= a.z;
+            let (kz, dz, dx, dy) = if x_max {
+                (0, d.x, d.y, d.z)
+            } else if y_max {
+                (1, d.y, d.z, d.x)
+            } else {
+                (2, d.z, d.x, d.y)
+            };
+            let r = 1.0 / dz;
+            let (u, v) = (dx * r, dy * r);
+            let ok = r.is_finite() && u.is_finite() && v.is_finite();
+            let perm = if ok { 2 * kz + u32::from(dz < 0.0) } else { 6 };
+            *k = perm << 24;
+            *sh = [u, v];
+        }
+        let mut count = [0usize; 7];
+        let mut lo = [[f32::INFINITY; 2]; 6];
+        let mut hi = [[f32::NEG_INFINITY; 2]; 6];
+        for (k, sh) in key.iter().zip(shear.iter()) {
+            let p = (*k >> 24) as usize;
+            count[p] += 1;
+            if p < 6 {
+                lo[p] = [lo[p][0].min(sh[0]), lo[p][1].min(sh[1])];
+                hi[p] = [hi[p][0].max(sh[0]), hi[p][1].max(sh[1])];
+            }
+        }
+        // A grid of about `count / per` cells per permutation, shaped like its shear bounds.
+        let mut grid = [(1u32, 1u32, 0.0f32, 0.0f32); 6];
+        let mut base = [0u32; 8];
+        for p in 0..6 {
+            let cells = count[p].div_ceil(per).max(1) as f32;
+            let (rx, ry) = (hi[p][0] - lo[p][0], hi[p][1] - lo[p][1]);
+            let aspect = if ry > 0.0 && rx > 0.0 { rx / ry } else { 1.0 };
+            let gx = if ry > 0.0 {
+                (cells * aspect).sqrt().round().clamp(1.0, cells)
+            } else {
+                cells
+            };
+            let gy = (cells / gx).ceil().max(1.0);
+            let gx = if rx > 0.0 { gx } else { 1.0 };
+            let gy = if ry > 0.0 { gy } else { 1.0 };
+            let sx = if rx > 0.0 { gx / rx } else { 0.0 };
+            let sy = if ry > 0.0 { gy / ry } else { 0.0 };
+            grid[p] = (gx as u32, gy as u32, sx, sy);
+            base[p + 1] = base[p] + gx as u32 * gy as u32;
+        }
+        base[7] = base[6] + 1;
+        // Cell of every ray, then a counting sort on the global cell index.
+        let mut hist = vec![0u32; base[7] as usize + 1];
+        for (k, sh) in key.iter_mut().zip(shear.iter()) {
+            let p = (*k >> 24) as usize;
+            let cell = if p < 6 {
+                let (gx, gy, sx, sy) = grid[p];
+                let cx = (((sh[0] - lo[p][0]) * sx) as u32).min(gx - 1);
+                let cy = (((sh[1] - lo[p][1]) * sy) as u32).min(gy - 1);
+                base[p] + cy * gx + cx
+            } else {
+                base[6]
+            };
+            *k |= cell;
+            hist[cell as usize + 1] += 1;
+        }
+        for c in 1..hist.len() {
+            hist[c] += hist[c - 1];
+        }
+        let order = &mut scratch.order;
+        order.clear();
+        order.resize(n, 0);
+        for (i, k) in key.iter().enumerate() {
+            let cell = (k & 0xff_ffff) as usize;
+            order[hist[cell] as usize] = i as u32;
+            hist[cell] += 1;
+        }
+    }
+
+    /// Traces the rays `rays.rows` (at most [`WIDE`], one permutation) as one frustum. The
+    /// per-lane setup is `Ray::new` and `Ray::clip` written over the lanes (same operations).
+    #[inline(always)]
+    fn frustum<const G: usize>(
+        &self,
+        rays: &Rows<'_>,
+        out_t: &mut [f32],
+        out_tri: &mut [u32],
+        f: &mut Frustum,
+        stack: &mut [WideEntry; STACK],
+        tmp: &mut [[f32; WIDE]; 3],
+    ) {
+        let mut entry = WideEntry::default();
+        let mut d = [[1.0f32; WIDE]; 3];
+        let mut live = [false; WIDE];
+        for (lane, &r) in rays.rows.iter().enumerate() {
+            let r = r as usize;
+            let dir = rays.dirs[r];
+            let o = rays.origins[r];
+            (f.org[0][lane], f.org[1][lane], f.org[2][lane]) = (o.x, o.y, o.z);
+            f.dir[lane] = dir;
+            (d[0][lane], d[1][lane], d[2][lane]) = (dir.x, dir.y, dir.z);
+            f.t_max[lane] = rays.t_max[r];
+        }
+        for lane in rays.rows.len()..WIDE {
+            f.t_max[lane] = f32::NAN;
+        }
+        // The permutation `WatertightRay::new` chooses for every ray of the run.
+        let kz = rays.perm as usize / 2;
+        let kx = if kz == 2 { 0 } else { kz + 1 };
+        let ky = if kx == 2 { 0 } else { kx + 1 };
+        let axes = if rays.perm % 2 == 1 {
+            [ky, kx, kz]
+        } else {
+            [kx, ky, kz]
+        };
+        let [kx, ky, _] = axes;
+        let (lo, hi) = (self.root.0, self.root.1);
+        for k in 0..WIDE {
+            let o = [f.org[0][k], f.org[1][k], f.org[2][k]];
+            let origin_ok = o.iter().all(|x| x.is_finite());
+            // `Ray::new`'s `δ`: the L∞ distance to the farthest root corner.
+            let reach = (0..3)
+                .map(|a| (lo[a] - o[a]).abs().max((hi[a] - o[a]).abs()))
+                .fold(f32::NEG_INFINITY, f32::max);
+            let delta = DELTA * reach;
+            let tm = f.t_max[k];
+            // `WatertightRay::new`'s shear and its test for a direction it rejects.
+            let dz = d[kz][k];
+            let sz = 1.0 / dz;
+            let sx = d[kx][k] / dz;
+            let sy = d[ky][k] / dz;
+            let test_ok = sz.is_finite() && sx.is_finite() && sy.is_finite() && origin_ok;
+            (f.sx[k], f.sy[k], f.sz[k]) = (sx, sy, sz);
+            f.best_t[k] = f32::INFINITY;
+            f.best_tri[k] = u32::MAX;
+            f.limit[k] = tm;
+            f.cull[k] = f32::INFINITY;
+            let mut t0 = 0.0f32;
+            let mut t1 = tm;
+            for a in 0..3 {
+                let inv = 1.0 / d[a][k];
+                let slack = (inv.abs() * delta).min(f32::MAX);
+                f.inv[a][k] = inv;
+                f.slack[a][k] = slack;
+                let ta = (lo[a] - o[a]) * inv;
+                let tb = (hi[a] - o[a]) * inv;
+                let (near, far) = (ta.min(tb), ta.max(tb));
+                t0 = t0.max(near - slack);
+                t1 = t1.min(far + slack);
+            }
+            // A bad `t_max` (NaN, `<= 0`) or a ray missing the root box: no hit.
+            live[k] = test_ok && tm > 0.0 && t0 <= t1 * HI;
+            // Lanes that are not live hold the neutral interval of the bounds (`min_all`).
+            entry.t0[k] = if live[k] { t0.max(0.0) } else { f32::INFINITY };
+            entry.t1[k] = if live[k] { t1 } else { f32::NEG_INFINITY };
+        }
+        entry.mask = bits(&live);
+        for (lane, &r) in rays.rows.iter().enumerate() {
+            if !live[lane] {
+                (out_t[r as usize], out_tri[r as usize]) = (f32::INFINITY, u32::MAX);
+            }
+        }
+        if entry.mask == 0 {
+            return;
+        }
+        f.k = axes.map(|x| x.min(2));
+        for a in 0..3 {
+            let only = |x: &[f32; WIDE], none: f32| -> [f32; WIDE] {
+                std::array::from_fn(|k| if live[k] { x[k] } else { none })
+            };
+            f.org_lo[a] = min_all::<G>(&only(&f.org[a], f32::INFINITY));
+            f.org_hi[a] = max_all::<G>(&only(&f.org[a], f32::NEG_INFINITY));
+            f.inv_lo[a] = min_all::<G>(&only(&f.inv[a], f32::INFINITY));
+            f.inv_hi[a] = max_all::<G>(&only(&f.inv[a], f32::NEG_INFINITY));
+            f.slack_hi[a] = max_all::<G>(&only(&f.slack[a], f32::NEG_INFINITY));
+        }
+        entry.lo = min_all::<G>(&entry.t0);
+        entry.hi = max_all::<G>(&entry.t1);
+        let lanes = entry.mask;
+        self.walk_frustum::<G>(f, entry, stack, tmp);
+        for (lane, &r) in rays.rows.iter().enumerate() {
+            if lanes >> lane & 1 != 0 {
+                let r = r as usize;
+                (out_t[r], out_tri[r]) = (f.best_t[lane], f.best_tri[lane]);
+            }
+        }
+    }
+
+    /// Front-to-back traversal of a frustum from `start` (see the module docs); each lane's
+    /// answer is left in `f.best_t`, `f.best_tri`.
+    #[inline(always)]
+    fn walk_frustum<const G: usize>(
+        &self,
+        f: &mut Frustum,
+        start: WideEntry,
+        stack: &mut [WideEntry; STACK],
+        tmp: &mut [[f32; WIDE]; 3],
+    ) {
+        let nodes = &self.tree.nodes[..];
+        let groups = WIDE / G;
+        let mut sp = 0usize;
+        let mut e = start;
+        loop {
+            // Descend to a leaf.
+            let leaf = loop {
+                let Some(&n) = nodes.get(e.node as usize) else {
+                    break None;
+                };
+                if n.is_leaf() {
+                    break Some(n);
+                }
+                let axis = n.axis();
+                let split = n.split();
+                let (left, right) = (e.node + 1, n.right());
+                let m = e.mask;
+                // The near side is the origin's (on the plane: the direction's sign).
+                let near_left = if f.org_hi[axis] < split {
+                    m
+                } else if f.org_lo[axis] > split {
+                    0
+                } else {
+                    let mut nl = 0u64;
+                    for g in 0..groups {
+                        let o = lanes::<G, f32>(&f.org[axis], g);
+                        let inv = lanes::<G, f32>(&f.inv[axis], g);
+                        let mut b = [false; G];
+                        for j in 0..G {
+                            b[j] = o[j] < split || (o[j] == split && inv[j] < 0.0);
+                        }
+                        nl |= bits(&b) << (g * G);
+                    }
+                    nl & m
+                };
+                let uniform = near_left == m || near_left == 0;
+                let (near, far) = if near_left == m {
+                    (left, right)
+                } else {
+                    (right, left)
+                };
+                // `split - o` over the lanes (monotonic in `o`).
+                let (s_lo, s_hi) = (split - f.org_hi[axis], split - f.org_lo[axis]);
+                let (tp_lo, tp_hi) = if uniform {
+                    match one_sided(
+                        s_lo,
+                        s_hi,
+                        f.inv_lo[axis],
+                        f.inv_hi[axis],
+                        f.slack_hi[axis],
+                        e.lo,
+                        e.hi,
+                    ) {
+                        // The whole frustum one way, intervals unchanged: no lane work.
+                        Sided::Near => {
+                            e.node = near;
+                            continue;
+                        }
+                        Sided::Far => {
+                            e.node = far;
+                            continue;
+                        }
+                        Sided::Step(lo, hi) => (lo, hi),
+                    }
+                } else {
+                    (f32::NEG_INFINITY, f32::INFINITY)
+                };
+                // Bounds of the children's intervals by interval arithmetic (no lane pass):
+                // where every lane has `tp > 0`, the near `t1 <= tp + δ` and the far
+                // `t0 >= tp - δ`.
+                let all_pos = tp_lo > 0.0;
+                let near_hi = if all_pos {
+                    min_ps(e.hi, tp_hi + f.slack_hi[axis])
+                } else {
+                    e.hi
+                };
+                let far_lo = if all_pos {
+                    max_ps(e.lo, tp_lo - f.slack_hi[axis])
+                } else {
+                    e.lo
+                };
+                f.steps += 1;
+                f.step_lanes += u64::from(m.count_ones());
+                let (mut go_near, mut go_far) = (0u64, 0u64);
+                let [near_t1, far_t0, far_t1] = tmp;
+                for g in 0..groups {
+                    if (m >> (g * G)) & group_bits::<G>() == 0 {
+                        continue;
+                    }
+                    let (gn, gf) = step_lanes::<G>(
+                        split,
+                        lanes::<G, f32>(&f.org[axis], g),
+                        lanes::<G, f32>(&f.inv[axis], g),
+                        lanes::<G, f32>(&f.slack[axis], g),
+                        lanes::<G, f32>(&e.t0, g),
+                        lanes::<G, f32>(&e.t1, g),
+                        lanes_mut::<G, f32>(near_t1, g),
+                        lanes_mut::<G, f32>(far_t0, g),
+                        lanes_mut::<G, f32>(far_t1, g),
+                    );
+                    go_near |= gn << (g * G);
+                    go_far |= gf << (g * G);
+                }
+                go_near &= m;
+                go_far &= m;
+                if !uniform {
+                    // Lanes on both sides of the plane: each lane's children as left/right,
+                    // the lowest live lane's near side first. The order changes no answer: a
+                    // lane still visits every leaf that starts before its best hit (culling
+                    // only skips entries beyond it), so it meets the leaf holding its closest
+                    // hit, and keeps the least `(t, index)` of what it tests, as the single
+                    // ray does.
+                    let nl = near_left;
+                    let left_mask = (nl & go_near) | (!nl & go_far);
+                    let right_mask = (nl & go_far) | (!nl & go_near);
+                    let left_first = nl & (m & m.wrapping_neg()) != 0;
+                    let (first_mask, second_mask, second_node) = if left_first {
+                        (left_mask, right_mask, right)
+                    } else {
+                        (right_mask, left_mask, left)
+                    };
+                    let first_node = if left_first { left } else { right };
+                    // Lanes whose near side goes first keep (t0, near t1) in `e` and push the
+                    // far interval; the others the other way round.
+                    let flip = if left_first { !nl } else { nl };
+                    if second_mask != 0 && sp < stack.len() {
+                        let top = &mut stack[sp];
+                        for k in 0..WIDE {
+                            let f_k = flip >> k & 1 != 0;
+                            top.t0[k] = if f_k { e.t0[k] } else { far_t0[k] };
+                            top.t1[k] = if f_k { near_t1[k] } else { far_t1[k] };
+                        }
+                        top.node = second_node;
+                        top.mask = second_mask;
+                        top.lo = e.lo;
+                        top.hi = e.hi;
+                        sp += 1;
+                    }
+                    for k in 0..WIDE {
+                        let f_k = flip >> k & 1 != 0;
+                        e.t0[k] = if f_k { far_t0[k] } else { e.t0[k] };
+                        e.t1[k] = if f_k { far_t1[k] } else { near_t1[k] };
+                    }
+                    e.node = first_node;
+                    e.mask = first_mask;
+                    if first_mask == 0 {
+                        break None;
+                    }
+                    continue;
+                }
+                if go_near != 0 && go_far != 0 {
+                    if sp < stack.len() {
+                        let top = &mut stack[sp];
+                        top.node = far;
+                        top.mask = go_far;
+                        top.t0 = *far_t0;
+                        top.t1 = *far_t1;
+                        top.lo = far_lo;
+                        top.hi = e.hi;
+                        sp += 1;
+                    }
+                    e.node = near;
+                    e.mask = go_near;
+                    e.t1 = *near_t1;
+                    e.hi = near_hi;
+                } else if go_near != 0 {
+                    // Every lane near only: its interval is unchanged.
+                    e.node = near;
+                    e.mask = go_near;
+                    e.hi = near_hi;
+                } else {
+                    // Every lane far only: the interval starts at the far `t0`.
+                    e.node = far;
+                    e.mask = go_far;
+                    e.t0 = *far_t0;
+                    e.lo = far_lo;
+                }
+                if e.mask == 0 {
+                    break None;
+                }
+            };
+            if let Some(n) = leaf {
+                self.leaf_frustum::<G>(f, n.offset() as usize, n.count() as usize, e.mask);
+            }
+            // Pop the next entry with a lane that can still hold a closer (or tying) hit.
+            loop {
+                if sp == 0 {
+                    return;
+                }
+                sp -= 1;
+                let top = &stack[sp];
+                let m = not_culled::<G>(&top.t0, &f.cull, top.mask);
+                if m != 0 {
+                    e = *top;
+                    e.mask = m;
+                    break;
+                }
+            }
+        }
+    }
+
+    /// Tests the leaf entries `start..start + count` against the lanes of `mask`, triangle by
+    /// triangle in leaf order (as each single ray does), updating each lane's best hit.
+    #[inline(always)]
+    fn leaf_frustum<const G: usize>(&self, f: &mut Frustum, start: usize, count: usize, mask: u64) {
+        let (Some(tris), Some(ids)) = (
+            self.tris.get(start..start + count),
+            self.tree.tri_indices.get(start..start + count),
+        ) else {
+            return;
+        };
+        let [kx, ky, kz] = f.k;
+        for (p, &id) in tris.iter().zip(ids) {
+            let perm = |v: &[f32; 3]| [v[kx], v[ky], v[kz]];
+            let (a, b, c) = (perm(&p[0]), perm(&p[1]), perm(&p[2]));
+            for g in 0..WIDE / G {
+                let gm = (mask >> (g * G)) & group_bits::<G>();
+                if gm == 0 {
+                    continue;
+                }
+                let edge = hit_lanes::<G>(f, g, gm, &a, &b, &c, id) & gm;
+                if edge != 0 {
+                    self.edge_lanes(f, g * G, edge, p, id);
+                }
+            }
+        }
+    }
+
+    /// Lanes `base + j` for the bits `j` of `edge` (a `u`, `v` or `w` of zero) retested with the
+    /// scalar watertight test (its double-precision edge fallback).
+    #[cold]
+    fn edge_lanes(&self, f: &mut Frustum, base: usize, mut edge: u64, p: &[[f32; 3]; 3], id: u32) {
+        let [kx, ky, kz] = f.k;
+        while edge != 0 {
+            let k = base + edge.trailing_zeros() as usize;
+            edge &= edge - 1;
+            let ray = WatertightRay {
+                origin: Vec3::new(f.org[0][k], f.org[1][k], f.org[2][k]),
+                kx,
+                ky,
+                kz,
+                sx: f.sx[k],
+                sy: f.sy[k],
+                sz: f.sz[k],
+            };
+            if let Some(t) = ray.intersect(p[0], p[1], p[2], f.limit[k])
+                && (t < f.best_t[k] || id < f.best_tri[k])
+            {
+                (f.best_t[k], f.best_tri[k]) = (t, id);
+                f.limit[k] = t.next_up();
+                f.cull[k] = t * HI;
+            }
+        }
+    }
+}
+
+/// One triangle (vertices `a`, `b`, `c` in the permuted axes) against the `G` lanes of group
+/// `g` whose bits are in `live`: the watertight test's operations in the scalar order, each hit taken as `Closest::accept` would. Returns the bits
+/// of the lanes on an edge (`u`, `v` or `w` zero), which the caller retests.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn hit_lanes<const G: usize>(
+    f: &mut Frustum,
+    g: usize,
+    live: u64,
+    a: &[f32; 3],
+    b: &[f32; 3],
+    c: &[f32; 3],
+    id: u32,
+) -> u64 {
+    let [kx, ky, kz] = f.k;
+    let ox = *lanes::<G, f32>(&f.org[kx], g);
+    let oy = *lanes::<G, f32>(&f.org[ky], g);
+    let oz = *lanes::<G, f32>(&f.org[kz], g);
+    let sx = *lanes::<G, f32>(&f.sx, g);
+    let sy = *lanes::<G, f32>(&f.sy, g);
+    let sz = *lanes::<G, f32>(&f.sz, g);
+    let limit = lanes_mut::<G, f32>(&mut f.limit, g);
+    let mut edge = [false; G];
+    let mut best_t = *lanes::<G, f32>(&f.best_t, g);
+    let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
+    let mut cull = *lanes::<G, f32>(&f.cull, g);
+    for j in 0..G {
+        let rel = |v: &[f32; 3]| [v[0] - ox[j], v[1] - oy[j], v[2] - oz[j]];
+        let (a, b, c) = (rel(a), rel(b), rel(c));
+        let ax = a[0] - sx[j] * a[2];
+        let ay = a[1] - sy[j] * a[2];
+        let bx = b[0] - sx[j] * b[2];
+        let by = b[1] - sy[j] * b[2];
+        let cx = c[0] - sx[j] * c[2];
+        let cy = c[1] - sy[j] * c[2];
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let on_edge = u == 0.0 || v == 0.0 || w == 0.0;
+        let neg = u < 0.0 || v < 0.0 || w < 0.0;
+        let pos = u > 0.0 || v > 0.0 || w > 0.0;
+        let det = u + v + w;
+        let az = sz[j] * a[2];
+        let bz = sz[j] * b[2];
+        let cz = sz[j] * c[2];
+        let t = (u * az + v * bz + w * cz) / det;
+        let live_j = live >> j & 1 != 0;
+        let hit = live_j & !on_edge & !(neg & pos) & (det != 0.0) & (t > 0.0) & (t < limit[j]);
+        let better = hit & ((t < best_t[j]) | (id < best_tri[j]));
+        best_t[j] = if better { t } else { best_t[j] };
+        best_tri[j] = if better { id } else { best_tri[j] };
+        // `t` is positive and finite here: its successor is the next bit pattern.
+        limit[j] = if better {
+            f32::from_bits(t.to_bits() + 1)
+        } else {
+            limit[j]
+        };
+        cull[j] = if better { t * HI } else { cull[j] };
+        edge[j] = on_edge & live_j;
+    }
+    *lanes_mut::<G, f32>(&mut f.best_t, g) = best_t;
+    *lanes_mut::<G, u32>(&mut f.best_tri, g) = best_tri;
+    *lanes_mut::<G, f32>(&mut f.cull, g) = cull;
+    bits(&edge)
+}
