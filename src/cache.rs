@@ -3,7 +3,7 @@
 //! centred on the mesh, so a render with a warm cache skips parsing and building.
 //!
 //! Reads and writes `DIR/<key>.wfkd` (`DIR` is `$XDG_CACHE_HOME/wavefront`, else
-//! `~/.cache/wavefront`, or the CLI's `--cache DIR`). The file is a fixed [`Header`] followed by
+//! `~/.cache/wavefront`, or the CLI's `--cache DIR`). The file is a fixed `Header` followed by
 //! five arrays in `bytemuck` layouts (native endianness, which the magic word also checks): the
 //! triangle count of each mesh (`u64`), positions (`[f64; 3]`), triangles (`[u32; 3]`), nodes
 //! ([`KdNode`], 8 bytes) and the leaves' triangle list (`u32`). An entry is trusted only after its
@@ -58,7 +58,7 @@ pub enum CacheError {
 }
 
 /// The key of an entry: a 128-bit XXH3 hash of the cache version, the crate version, the builder
-/// and its settings, and every mesh's OBJ bytes (length and [`part_hash`], hashed in parallel
+/// and its settings, and every mesh's OBJ bytes (length and `part_hash`, hashed in parallel
 /// 1 MiB pieces, in scene order).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct CacheKey(pub u128);

@@ -1,6 +1,6 @@
 //! The scene description: image, camera, render settings, lights, materials and primitives.
 //!
-//! A [`Scene`] is pure data, as read from a TOML file ([`file`]) or built in ([`builtin`]), in world
+//! A [`Scene`] is pure data, as read from a TOML file ([`mod@file`]) or built in ([`builtin`]), in world
 //! coordinates: positions (eye, lights, sphere centres, plane points) are kept in f64 as read.
 //! Meshes are referred to by path; [`crate::world::World`] loads them, moves everything into the
 //! camera-relative f32 render frame and builds the acceleration structure.

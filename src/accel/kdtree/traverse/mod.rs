@@ -60,8 +60,8 @@ use super::{KdTree, TriHit, exact_root};
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
 use crate::scene::TriangleTest;
-pub use bundle::BundleCounts;
 use crate::simd::{Kernel, Level, dispatch};
+pub use bundle::BundleCounts;
 use visit::{Closest, Occluded};
 
 /// Rays per packet.
