@@ -10,7 +10,7 @@
 //! schedule hands it over; [`StageBench::run`] then runs one stage on its snapshot through the
 //! schedule's own dispatch ([`schedule::run_stage`]). The CLI takes the best of R runs after one
 //! warm-up, criterion does its own sampling. With the `embree` feature, [`run`] also traces the
-//! same intersect and shadow ray arrays with the Embree peer ([`crate::peer::embree`]) and
+//! same intersect and shadow ray arrays with the Embree peer (`peer::embree`, behind the `embree` feature) and
 //! reports project/Embree throughput ratios of the kernels alone.
 
 use std::fmt;

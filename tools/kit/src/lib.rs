@@ -1,7 +1,7 @@
 //! # wavefront-kit
 //!
 //! The measuring tools around the [`wavefront`] renderer, kept out of its library: the
-//! independent f64 [`oracle`], the recursive f32 [`baseline`] tracer, the per-stage benchmark runner ([`bench`]), the
+//! independent f64 [`oracle`], the recursive f32 [`baseline`] tracer, the per-stage benchmark runner ([`mod@bench`]), the
 //! error-against-run-time [`report`], the Embree [`peer`] and the fixtures the test suites share
 //! ([`testkit`]). The renderer never depends on this crate.
 
