@@ -393,7 +393,11 @@ impl World {
             let m = end - start;
             for k in 0..m {
                 let i = start + k;
-                limit[k] = if out_prim[i].is_hit() { out_t[i] } else { t_max[i] };
+                limit[k] = if out_prim[i].is_hit() {
+                    out_t[i]
+                } else {
+                    t_max[i]
+                };
             }
             t.tree.intersect_closest_batch(
                 &origins[start..end],
@@ -465,7 +469,11 @@ impl World {
             let end = (start + BLOCK).min(origins.len());
             let m = end - start;
             for k in 0..m {
-                limit[k] = if out[start + k] { 0.0 } else { t_max[start + k] };
+                limit[k] = if out[start + k] {
+                    0.0
+                } else {
+                    t_max[start + k]
+                };
             }
             t.tree.intersect_occluded_batch(
                 &origins[start..end],

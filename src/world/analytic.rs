@@ -240,8 +240,11 @@ mod tests {
                 3 => Vec3::new(rng.range(-9.0, 9.0), rng.range(-3.0, 5.0), -20.0),
                 _ => Vec3::new(0.0, 0.0, -5.0 + rng.range(0.99, 1.01)),
             };
-            let dir =
-                Vec3::new(rng.range(-1.0, 1.0), rng.range(-1.0, 1.0), rng.range(-1.0, 1.0));
+            let dir = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
             let dir = match i % 97 {
                 0 => Vec3::NAN,
                 1 => Vec3::ZERO,
@@ -304,5 +307,65 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Scene A plus a soup of triangles around its spheres, a triangle coinciding with the floor
+    /// (ties) and one through the green sphere: the mixed world's batch queries against the
+    /// scalar ones, row for row.
+    #[test]
+    fn a_mixed_world_batches_like_the_scalar_queries() {
+        use crate::accel::kdtree::BuildMethod;
+        use crate::mesh::TriangleMesh;
+        let scene = spheres();
+        let mut rng = Rng(5);
+        let mut vertices = vec![];
+        let mut indices = vec![];
+        for k in 0..300u32 {
+            let c = Vec3::new(
+                rng.range(-8.0, 8.0),
+                rng.range(-2.0, 4.0),
+                rng.range(-14.0, -2.0),
+            );
+            for _ in 0..3 {
+                let v = c + Vec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                );
+                vertices.push(v.to_array());
+            }
+            indices.push([3 * k, 3 * k + 1, 3 * k + 2]);
+        }
+        let b = vertices.len() as u32;
+        vertices.extend([[-20.0, -2.0, 5.0], [20.0, -2.0, 5.0], [0.0, -2.0, -40.0]]);
+        vertices.extend([[-2.0, 0.0, -5.0], [2.0, 0.0, -5.0], [0.0, 2.0, -5.0]]);
+        indices.extend([[b, b + 1, b + 2], [b + 3, b + 4, b + 5]]);
+        let world = World::with_mesh(
+            &scene,
+            &TriangleMesh::new(vertices, indices),
+            BuildMethod::Sah,
+        );
+        let (o, d, t) = rays(20_011);
+        let mut out_t = vec![0.0; o.len()];
+        let mut out_prim = vec![PrimId(7); o.len()];
+        world.intersect_closest_batch(&o, &d, &t, &mut out_t, &mut out_prim);
+        let mut occ = vec![false; o.len()];
+        world.intersect_occluded_batch(&o, &d, &t, &mut occ);
+        let mut triangles = 0;
+        for i in 0..o.len() {
+            let (st, sp) = world.intersect_closest(o[i], d[i], t[i]);
+            assert_eq!(
+                (out_t[i].to_bits(), out_prim[i]),
+                (st.to_bits(), sp),
+                "ray {i}"
+            );
+            assert_eq!(
+                occ[i],
+                world.intersect_occluded(o[i], d[i], t[i]),
+                "ray {i}"
+            );
+            triangles += usize::from(sp.is_hit() && sp.0 >= 4);
+        }
+        assert!(triangles > 1000, "the mesh is hit ({triangles} rays)");
     }
 }
