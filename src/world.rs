@@ -17,6 +17,7 @@ use crate::scene::{Material, Normals, OffsetMethod, Robustness, Scene, SphereTes
 
 mod analytic;
 mod cached;
+pub use analytic::SurfaceOut;
 pub use cached::{CacheStatus, Setup};
 
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.

@@ -21,10 +21,10 @@ use rayon::prelude::*;
 use crate::film::SampleBuffer;
 use crate::frame::Light;
 use crate::geometry::offset::shadow_t_max;
-use crate::queue::compact::kept_rows;
-use crate::queue::{HitQueue, MIN_CHUNK, PrimId, RowIndex, SampleSlot, ShadowQueue};
+use crate::queue::compact::split_by_counts;
+use crate::queue::{HitQueue, MIN_CHUNK, PrimId, SampleSlot, ShadowQueue};
 use crate::scene::{Material, Scene};
-use crate::world::{Surface, World};
+use crate::world::{Surface, SurfaceOut, World};
 
 crate::column_set! {
     /// What `shade_hits` reads and writes in the hit queue.
@@ -259,11 +259,13 @@ pub fn shadow_ray(origin: Vec3, light: &Light) -> (Vec3, f32) {
 pub struct ShadeScratch {
     /// `shadow_radiance` of every (hit, light) row of the pass, hit-major.
     radiance: Vec<Vec3>,
-    /// The rows with non-zero radiance, in order.
-    rows: Vec<RowIndex>,
+    /// Kept rows (non-zero radiance) of each chunk of hits.
+    counts: Vec<usize>,
 }
 
-/// Shades every hit: fills its surface columns and `emitted` (one row per hit).
+/// Shades every hit: fills its surface columns and `emitted` (one row per hit). Each chunk of
+/// rows goes through [`World::surface_batch`] (the SIMD surface kernel) and then the emitted
+/// radiance of its rows.
 pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
     let n = hits.prim.len();
     hits.point.resize(n, Vec3::ZERO);
@@ -271,49 +273,53 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
     hits.material.resize(n, 0);
     hits.spawn.resize(n, Vec3::ZERO);
     hits.shading.resize(n, Vec3::ZERO);
+    hits.emitted.clear();
+    hits.emitted.resize(n, Vec3::ZERO);
+    let (prim, origin, direction, t, weight) =
+        (hits.prim, hits.origin, hits.direction, hits.t, hits.weight);
     (
-        (
-            &mut *hits.point,
-            &mut *hits.normal,
-            &mut *hits.material,
-            &mut *hits.spawn,
-            &mut *hits.shading,
-        ),
-        (hits.prim, hits.origin, hits.direction, hits.t),
+        hits.point.par_chunks_mut(MIN_CHUNK),
+        hits.normal.par_chunks_mut(MIN_CHUNK),
+        hits.material.par_chunks_mut(MIN_CHUNK),
+        hits.spawn.par_chunks_mut(MIN_CHUNK),
+        hits.shading.par_chunks_mut(MIN_CHUNK),
+        hits.emitted.par_chunks_mut(MIN_CHUNK),
     )
         .into_par_iter()
-        .with_min_len(MIN_CHUNK)
-        .for_each(|((p, nrm, m, sp, sh), (&prim, &o, &d, &t))| {
-            let s = world.surface(prim, o, d, t);
-            (*p, *nrm, *m, *sp, *sh) = (s.point, s.normal, s.material, s.spawn, s.shading);
-        });
-    let surface = (
-        &*hits.point,
-        &*hits.normal,
-        &*hits.material,
-        &*hits.spawn,
-        &*hits.shading,
-    );
-    ((hits.direction, hits.weight), surface)
-        .into_par_iter()
-        .with_min_len(MIN_CHUNK)
-        .map(
-            |((&d, &w), (&point, &normal, &material, &spawn, &shading))| {
+        .enumerate()
+        .for_each(|(c, (point, normal, material, spawn, shading, emitted))| {
+            let r = c * MIN_CHUNK..c * MIN_CHUNK + point.len();
+            world.surface_batch(
+                &prim[r.clone()],
+                &origin[r.clone()],
+                &direction[r.clone()],
+                &t[r.clone()],
+                SurfaceOut {
+                    point: &mut *point,
+                    normal: &mut *normal,
+                    material: &mut *material,
+                    spawn: &mut *spawn,
+                    shading: &mut *shading,
+                },
+            );
+            for (k, e) in emitted.iter_mut().enumerate() {
                 let s = Surface {
-                    point,
-                    normal,
-                    material,
-                    spawn,
-                    shading,
+                    point: point[k],
+                    normal: normal[k],
+                    material: material[k],
+                    spawn: spawn[k],
+                    shading: shading[k],
                 };
-                shade_hit(world, settings, (d, w), &s)
-            },
-        )
-        .collect_into_vec(hits.emitted);
+                let i = r.start + k;
+                *e = shade_hit(world, settings, (direction[i], weight[i]), &s);
+            }
+        });
 }
 
 /// Spawns the shadow rays of `pass` (`shadows` is overwritten): for every hit of the pass and
-/// every light of the pass that can light it, in (hit, light) order — slot order.
+/// every light of the pass that can light it, in (hit, light) order — slot order. Two passes over
+/// chunks of hits: the first evaluates every (hit, light) row's radiance and counts the non-zero
+/// ones, the second writes each chunk's rays at its place in the queue.
 pub fn spawn_shadow_rays(
     world: &World,
     settings: &ShadeSettings,
@@ -327,44 +333,58 @@ pub fn spawn_shadow_rays(
     let rows = pass.rows();
     debug_assert!(rows <= MAX_SHADOW_ROWS);
     let r = pass.hits.clone();
+    let chunk = (MIN_CHUNK / per_hit).max(1);
     scratch.radiance.clear();
     scratch.radiance.resize(rows, Vec3::ZERO);
+    let materials = world.materials();
+    let radiance = &mut scratch.radiance;
+    radiance
+        .par_chunks_mut(chunk * per_hit)
+        .enumerate()
+        .map(|(c, out)| {
+            let first = r.start + c * chunk;
+            let mut kept = 0;
+            for (k, row) in out.chunks_mut(per_hit).enumerate() {
+                let h = first + k;
+                let (d, w) = (hits.direction[h], hits.weight[h]);
+                let (p, n, sh) = (hits.point[h], hits.normal[h], hits.shading[h]);
+                let m = &materials[hits.material[h] as usize];
+                for (o, light) in row.iter_mut().zip(lights) {
+                    *o = shadow_radiance(light, m, settings.specular, (d, w), (p, n, sh));
+                    kept += usize::from(*o != Vec3::ZERO);
+                }
+            }
+            kept
+        })
+        .collect_into_vec(&mut scratch.counts);
+    let counts = &scratch.counts;
+    let radiance = &scratch.radiance;
     (
-        (&hits.direction[r.clone()], &hits.weight[r.clone()]),
-        (
-            &hits.point[r.clone()],
-            &hits.normal[r.clone()],
-            &hits.shading[r.clone()],
-        ),
-        &hits.material[r.clone()],
-        scratch.radiance.par_chunks_mut(per_hit),
+        split_by_counts(shadows.origin, counts),
+        split_by_counts(shadows.direction, counts),
+        split_by_counts(shadows.t_max, counts),
+        split_by_counts(shadows.radiance, counts),
+        split_by_counts(shadows.slot, counts),
     )
         .into_par_iter()
-        .with_min_len((MIN_CHUNK / per_hit).max(1))
-        .for_each(|((&d, &w), (&p, &n, &sh), &material, out)| {
-            let m = &world.materials()[material as usize];
-            for (o, light) in out.iter_mut().zip(lights) {
-                *o = shadow_radiance(light, m, settings.specular, (d, w), (p, n, sh));
+        .enumerate()
+        .for_each(|(c, (origin, direction, t_max, out_radiance, slot))| {
+            let first = r.start + c * chunk;
+            let rows = &radiance[c * chunk * per_hit..((c + 1) * chunk * per_hit).min(rows)];
+            let mut j = 0;
+            for (k, row) in rows.chunks(per_hit).enumerate() {
+                let h = first + k;
+                let spawn = hits.spawn[h];
+                for (&value, light) in row.iter().zip(lights) {
+                    if value != Vec3::ZERO {
+                        let (dir, t) = shadow_ray(spawn, light);
+                        (origin[j], direction[j], t_max[j]) = (spawn, dir, t);
+                        (out_radiance[j], slot[j]) = (value, hits.slot[h]);
+                        j += 1;
+                    }
+                }
             }
         });
-    let radiance = &scratch.radiance;
-    kept_rows(rows, |i| radiance[i] != Vec3::ZERO, &mut scratch.rows);
-    let kept = &scratch.rows;
-    let hit = |k: RowIndex| r.start + k.get() / per_hit;
-    let light = |k: RowIndex| &lights[k.get() % per_hit];
-    let each = || kept.par_iter().with_min_len(MIN_CHUNK);
-    each()
-        .map(|&k| hits.spawn[hit(k)])
-        .collect_into_vec(shadows.origin);
-    each()
-        .map(|&k| shadow_ray(hits.spawn[hit(k)], light(k)))
-        .unzip_into_vecs(shadows.direction, shadows.t_max);
-    each()
-        .map(|&k| radiance[k.get()])
-        .collect_into_vec(shadows.radiance);
-    each()
-        .map(|&k| hits.slot[hit(k)])
-        .collect_into_vec(shadows.slot);
 }
 
 /// The hit/miss mask variant of shade: every hit emits its weight (white for primary rays).

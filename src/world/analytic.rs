@@ -13,8 +13,11 @@
 
 use glam::Vec3;
 
+use super::World;
 use crate::frame::{Plane, Sphere};
+use crate::geometry::offset::gamma;
 use crate::queue::PrimId;
+use crate::scene::OffsetMethod;
 use crate::simd::{Kernel, Level, dispatch};
 
 /// Rays per lane group.
@@ -219,6 +222,217 @@ pub(crate) fn occluded(k: Occluded<'_>) {
     dispatch(Level::current(), k)
 }
 
+/// The output columns of [`World::surface_batch`], one row per hit (a chunk of the hit queue).
+pub struct SurfaceOut<'a> {
+    /// [`Surface::point`](super::Surface::point) of each row.
+    pub point: &'a mut [Vec3],
+    /// [`Surface::normal`](super::Surface::normal) of each row.
+    pub normal: &'a mut [Vec3],
+    /// [`Surface::material`](super::Surface::material) of each row.
+    pub material: &'a mut [u32],
+    /// [`Surface::spawn`](super::Surface::spawn) of each row.
+    pub spawn: &'a mut [Vec3],
+    /// [`Surface::shading`](super::Surface::shading) of each row.
+    pub shading: &'a mut [Vec3],
+}
+
+/// One analytic primitive as the surface kernel reads it: a sphere (`centre`, `radius`) or a
+/// plane (`point` in `centre`, `normal`).
+#[derive(Clone, Copy, Debug, Default)]
+struct PrimEntry {
+    sphere: bool,
+    centre: [f32; 3],
+    radius: f32,
+    normal: [f32; 3],
+    material: u32,
+}
+
+/// [`World::surface`] of 8 analytic hits in lanes (see [`World::surface_batch`]).
+struct Surfaces<'a, 'b> {
+    prims: &'a [PrimEntry],
+    prim: &'a [PrimId],
+    origins: &'a [Vec3],
+    dirs: &'a [Vec3],
+    t: &'a [f32],
+    out: SurfaceOut<'b>,
+}
+
+/// `next_float_up` / `next_float_down` of [`crate::geometry::offset`], chosen by the sign of
+/// `offset` (unchanged for a zero offset), as `offset_ray_origin` applies them per component.
+#[inline(always)]
+fn nudge(v: f32, offset: f32) -> f32 {
+    let up = offset > 0.0;
+    let down = offset < 0.0;
+    // Infinities in the direction of the step and NaN stay.
+    let stay = v.is_nan() || (up && v == f32::INFINITY) || (down && v == f32::NEG_INFINITY);
+    // Both zeros step from +0.0 up and from -0.0 down.
+    let z = if up { 0.0f32 } else { -0.0f32 };
+    let w = if v == 0.0 { z } else { v };
+    let bits = w.to_bits();
+    // Away from zero: up from +0.0 or a positive, down from -0.0 or a negative.
+    let away = if up { w >= 0.0 } else { w <= 0.0 };
+    let moved = if away {
+        bits.wrapping_add(1)
+    } else {
+        bits.wrapping_sub(1)
+    };
+    if stay || !(up || down) {
+        v
+    } else {
+        f32::from_bits(moved)
+    }
+}
+
+impl Kernel for Surfaces<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self, _level: Level) {
+        let n = self.prim.len();
+        let last = self.prims.len() - 1;
+        let g2 = gamma(2);
+        let g4 = gamma(4);
+        let g5 = gamma(5);
+        for i in 0..n {
+            let e = self.prims[(self.prim[i].0 as usize).min(last)];
+            let (o, d, t) = (self.origins[i], self.dirs[i], self.t[i]);
+            let p = [o.x + t * d.x, o.y + t * d.y, o.z + t * d.z];
+            let c = e.centre;
+            let nn = e.normal;
+            // Sphere: re-projected through the centre.
+            let a = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+            let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            let rcp = 1.0 / len;
+            let sn = [a[0] * rcp, a[1] * rcp, a[2] * rcp];
+            let v = [e.radius * sn[0], e.radius * sn[1], e.radius * sn[2]];
+            let sp = [c[0] + v[0], c[1] + v[1], c[2] + v[2]];
+            // Plane: projected along its normal.
+            let s = a[0] * nn[0] + a[1] * nn[1] + a[2] * nn[2];
+            let pp = [p[0] - s * nn[0], p[1] - s * nn[1], p[2] - s * nn[2]];
+            let s_error = g4 * ((a[0] * nn[0]).abs() + (a[1] * nn[1]).abs() + (a[2] * nn[2]).abs());
+            let mut point = [0.0f32; 3];
+            let mut geo = [0.0f32; 3];
+            let mut err = [0.0f32; 3];
+            for k in 0..3 {
+                let sphere_err = g5 * v[k].abs() + g2 * sp[k].abs();
+                let plane_err = nn[k].abs() * s_error + g2 * (pp[k].abs() + (s * nn[k]).abs());
+                point[k] = if e.sphere { sp[k] } else { pp[k] };
+                geo[k] = if e.sphere { sn[k] } else { nn[k] };
+                err[k] = if e.sphere { sphere_err } else { plane_err };
+            }
+            let flip = geo[0] * d.x + geo[1] * d.y + geo[2] * d.z > 0.0;
+            let normal = geo.map(|g| if flip { -g } else { g });
+            let dd = normal[0].abs() * err[0] + normal[1].abs() * err[1] + normal[2].abs() * err[2];
+            let mut po = [0.0f32; 3];
+            for k in 0..3 {
+                let offset = dd * normal[k];
+                po[k] = nudge(point[k] + offset, offset);
+            }
+            let finite = po.iter().all(|x| x.is_finite());
+            let spawn = if finite { po } else { point };
+            self.out.point[i] = Vec3::from(point);
+            self.out.normal[i] = Vec3::from(normal);
+            self.out.shading[i] = Vec3::from(normal);
+            self.out.spawn[i] = Vec3::from(spawn);
+            self.out.material[i] = e.material;
+        }
+    }
+}
+
+/// The world's spheres, then its planes, as the surface kernel reads them (primitive id order).
+fn prim_entries(world: &World) -> impl Iterator<Item = PrimEntry> + '_ {
+    let spheres = world.spheres.iter().map(|s| PrimEntry {
+        sphere: true,
+        centre: s.center.to_array(),
+        radius: s.radius,
+        normal: [0.0; 3],
+        material: s.material,
+    });
+    let planes = world.planes.iter().map(|p| PrimEntry {
+        sphere: false,
+        centre: p.point.to_array(),
+        radius: 0.0,
+        normal: p.normal.to_array(),
+        material: p.material,
+    });
+    spheres.chain(planes)
+}
+
+impl World {
+    /// [`World::surface`] of every row, bit-identical to it: `out`'s columns receive row `i`'s
+    /// surface. Sphere and plane hits go through one branch-free kernel compiled per SIMD level
+    /// (both re-projections evaluated, the primitive's chosen by a select); triangle hits, and
+    /// worlds with the fixed-epsilon offset, call [`World::surface`] row by row.
+    /// Panics if the slices' lengths differ.
+    pub fn surface_batch(
+        &self,
+        prim: &[PrimId],
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t: &[f32],
+        out: SurfaceOut<'_>,
+    ) {
+        let n = prim.len();
+        assert!(origins.len() == n && dirs.len() == n && t.len() == n);
+        assert!(out.point.len() == n && out.normal.len() == n && out.material.len() == n);
+        assert!(out.spawn.len() == n && out.shading.len() == n);
+        let analytic = self.spheres.len() + self.planes.len();
+        if analytic == 0 || self.robustness.offset != OffsetMethod::ErrorBound {
+            for i in 0..n {
+                let s = self.surface(prim[i], origins[i], dirs[i], t[i]);
+                (out.point[i], out.normal[i], out.material[i]) = (s.point, s.normal, s.material);
+                (out.spawn[i], out.shading[i]) = (s.spawn, s.shading);
+            }
+            return;
+        }
+        let mut prims = [PrimEntry::default(); 16];
+        let table: Vec<PrimEntry>;
+        let entries = prim_entries(self);
+        let prims: &[PrimEntry] = if analytic <= prims.len() {
+            for (slot, e) in prims.iter_mut().zip(entries) {
+                *slot = e;
+            }
+            &prims[..analytic]
+        } else {
+            table = entries.collect();
+            &table
+        };
+        let triangles = self.triangles.is_some();
+        let SurfaceOut {
+            point,
+            normal,
+            material,
+            spawn,
+            shading,
+        } = out;
+        dispatch(
+            Level::current(),
+            Surfaces {
+                prims,
+                prim,
+                origins,
+                dirs,
+                t,
+                out: SurfaceOut {
+                    point: &mut *point,
+                    normal: &mut *normal,
+                    material: &mut *material,
+                    spawn: &mut *spawn,
+                    shading: &mut *shading,
+                },
+            },
+        );
+        if triangles {
+            for i in 0..n {
+                if prim[i].0 as usize >= analytic {
+                    let s = self.surface(prim[i], origins[i], dirs[i], t[i]);
+                    (point[i], normal[i], material[i]) = (s.point, s.normal, s.material);
+                    (spawn[i], shading[i]) = (s.spawn, s.shading);
+                }
+            }
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -367,5 +581,87 @@ mod tests {
             triangles += usize::from(sp.is_hit() && sp.0 >= 4);
         }
         assert!(triangles > 1000, "the mesh is hit ({triangles} rays)");
+    }
+
+    #[test]
+    fn nudge_is_next_float_up_and_down() {
+        use crate::geometry::offset::{next_float_down, next_float_up};
+        let values = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MAX,
+            -f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            3.5e-3,
+            -7.25e5,
+        ];
+        for v in values {
+            assert_eq!(nudge(v, 1.0).to_bits(), next_float_up(v).to_bits(), "{v}");
+            assert_eq!(
+                nudge(v, -1.0).to_bits(),
+                next_float_down(v).to_bits(),
+                "{v}"
+            );
+            assert_eq!(nudge(v, 0.0).to_bits(), v.to_bits(), "{v}");
+        }
+    }
+
+    #[test]
+    fn surfaces_match_the_scalar_surface_bit_for_bit_at_every_level() {
+        let world = World::load(&spheres()).unwrap();
+        let (o, d, t) = rays(10_007);
+        let mut hit_t = vec![0.0; o.len()];
+        let mut prim = vec![PrimId::NONE; o.len()];
+        world.intersect_closest_batch(&o, &d, &t, &mut hit_t, &mut prim);
+        let rows: Vec<usize> = (0..o.len()).filter(|&i| prim[i].is_hit()).collect();
+        let pick = |c: &[Vec3]| rows.iter().map(|&i| c[i]).collect::<Vec<_>>();
+        let (o, d) = (pick(&o), pick(&d));
+        let t: Vec<f32> = rows.iter().map(|&i| hit_t[i]).collect();
+        let prim: Vec<PrimId> = rows.iter().map(|&i| prim[i]).collect();
+        assert!(rows.len() > 3000);
+        let n = rows.len();
+        for level in Level::supported() {
+            let mut cols = (
+                vec![Vec3::NAN; n],
+                vec![Vec3::NAN; n],
+                vec![9; n],
+                vec![Vec3::NAN; n],
+            );
+            let mut shading = vec![Vec3::NAN; n];
+            dispatch(
+                level,
+                Surfaces {
+                    prims: &prim_entries(&world).collect::<Vec<_>>(),
+                    prim: &prim,
+                    origins: &o,
+                    dirs: &d,
+                    t: &t,
+                    out: SurfaceOut {
+                        point: &mut cols.0,
+                        normal: &mut cols.1,
+                        material: &mut cols.2,
+                        spawn: &mut cols.3,
+                        shading: &mut shading,
+                    },
+                },
+            );
+            for i in 0..n {
+                let s = world.surface(prim[i], o[i], d[i], t[i]);
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(cols.0[i]), bits(s.point), "{level:?} row {i}");
+                assert_eq!(bits(cols.1[i]), bits(s.normal), "{level:?} row {i}");
+                assert_eq!(cols.2[i], s.material, "{level:?} row {i}");
+                assert_eq!(bits(cols.3[i]), bits(s.spawn), "{level:?} row {i}");
+                assert_eq!(bits(shading[i]), bits(s.shading), "{level:?} row {i}");
+            }
+        }
     }
 }
