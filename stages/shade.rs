@@ -273,7 +273,6 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
     hits.material.resize(n, 0);
     hits.spawn.resize(n, Vec3::ZERO);
     hits.shading.resize(n, Vec3::ZERO);
-    hits.emitted.clear();
     hits.emitted.resize(n, Vec3::ZERO);
     let (prim, origin, direction, t, weight) =
         (hits.prim, hits.origin, hits.direction, hits.t, hits.weight);
@@ -334,8 +333,7 @@ pub fn spawn_shadow_rays(
     debug_assert!(rows <= MAX_SHADOW_ROWS);
     let r = pass.hits.clone();
     let chunk = (MIN_CHUNK / per_hit).max(1);
-    scratch.radiance.clear();
-    scratch.radiance.resize(rows, Vec3::ZERO);
+    scratch.radiance.resize(rows, Vec3::ZERO); // every row is overwritten
     let materials = world.materials();
     let radiance = &mut scratch.radiance;
     radiance

@@ -53,7 +53,7 @@ pub fn split_by_counts<'a, T: Copy + Default>(
     out: &'a mut Vec<T>,
     counts: &[usize],
 ) -> Vec<&'a mut [T]> {
-    out.clear();
+    // Every row is overwritten by its chunk: only a growing column needs filling.
     out.resize(counts.iter().sum(), T::default());
     let mut rest = out.as_mut_slice();
     let mut pieces = Vec::with_capacity(counts.len());

@@ -25,7 +25,7 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::film::{Film, PixelSink, SampleBuffer, resolve_wave};
-use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, RowIndex, ShadowQueue};
+use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, ShadowQueue};
 use crate::region::Region;
 use crate::scene::{RenderMode, Scene};
 use crate::stages::generate::{CameraRays, generate_camera_rays};
@@ -280,7 +280,7 @@ pub struct WaveQueues {
     pub samples: SampleBuffer,
     /// The wave's resolved pixels (linear radiance), handed to the sink.
     pub pixels: Vec<Vec3>,
-    rows: Vec<RowIndex>,
+    counts: Vec<usize>,
     shade: ShadeScratch,
 }
 
@@ -442,7 +442,7 @@ pub fn run_stage(
             compact_hits(
                 CompactRays::of(&ws.rays),
                 CompactHits::of(&ws.closest),
-                &mut ws.rows,
+                &mut ws.counts,
                 CompactOut::of(&mut ws.hits),
             );
             (ws.rays.len(), ws.hits.len())
@@ -483,7 +483,7 @@ pub fn run_stage(
             spawn_reflection_rays(
                 world,
                 ReflectHits::of(&ws.hits),
-                &mut ws.rows,
+                &mut ws.counts,
                 NextRays::of(&mut ws.next),
             );
             (ws.hits.len(), ws.next.len())

@@ -53,25 +53,40 @@ impl Rays8 {
 
 /// The stable ray/sphere test of [`crate::geometry::sphere::intersect_f64`] (then rounded and
 /// re-checked as `intersect_stable` does) on 8 lanes against `best` (each lane's `t_max`):
-/// returns the lanes' `t` and whether each hit.
+/// returns the lanes' `t` and whether each hit, or `None` when every lane's discriminant is
+/// negative or NaN (every lane misses: the roots' square root and divisions are skipped).
 #[inline(always)]
-fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> ([f32; LANES], [bool; LANES]) {
+fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], [bool; LANES])> {
     let c = [s.center.x as f64, s.center.y as f64, s.center.z as f64];
     let rr = s.radius as f64 * s.radius as f64;
-    let mut t_out = [0.0f32; LANES];
-    let mut hit = [false; LANES];
+    let mut a = [0.0f64; LANES];
+    let mut b = [0.0f64; LANES];
+    let mut disc = [0.0f64; LANES];
+    let mut cc = [0.0f64; LANES];
     for l in 0..LANES {
         let (ox, oy, oz) = (r.o[0][l] as f64, r.o[1][l] as f64, r.o[2][l] as f64);
         let (dx, dy, dz) = (r.d[0][l] as f64, r.d[1][l] as f64, r.d[2][l] as f64);
         let (fx, fy, fz) = (ox - c[0], oy - c[1], oz - c[2]);
-        let a = dx * dx + dy * dy + dz * dz;
-        let b = fx * dx + fy * dy + fz * dz;
-        let k = b / a;
+        a[l] = dx * dx + dy * dy + dz * dz;
+        b[l] = fx * dx + fy * dy + fz * dz;
+        let k = b[l] / a[l];
         let (lx, ly, lz) = (fx - k * dx, fy - k * dy, fz - k * dz);
-        let disc = a * (rr - (lx * lx + ly * ly + lz * lz));
-        let cc = (fx * fx + fy * fy + fz * fz) - rr;
-        let q = -b - disc.sqrt().copysign(b);
-        let (t0, t1) = (cc / q, q / a);
+        disc[l] = a[l] * (rr - (lx * lx + ly * ly + lz * lz));
+        cc[l] = (fx * fx + fy * fy + fz * fz) - rr;
+    }
+    // `disc >= 0` is false for NaN, as the scalar test's early return.
+    let mut any = false;
+    for d in disc {
+        any |= d >= 0.0;
+    }
+    if !any {
+        return None;
+    }
+    let mut t_out = [0.0f32; LANES];
+    let mut hit = [false; LANES];
+    for l in 0..LANES {
+        let q = -b[l] - disc[l].sqrt().copysign(b[l]);
+        let (t0, t1) = (cc[l] / q, q / a[l]);
         let le = t0 <= t1;
         let near = if le { t0 } else { t1 };
         let far = if le { t1 } else { t0 };
@@ -80,11 +95,10 @@ fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> ([f32; LANES], [bool; 
         let far_ok = far > 0.0 && far < tm;
         let t64 = if near_ok { near } else { far };
         let t = t64 as f32;
-        // `disc >= 0` is false for NaN, as the scalar test's early return.
-        hit[l] = disc >= 0.0 && (near_ok || far_ok) && t > 0.0 && t < best[l];
+        hit[l] = disc[l] >= 0.0 && (near_ok || far_ok) && t > 0.0 && t < best[l];
         t_out[l] = t;
     }
-    (t_out, hit)
+    Some((t_out, hit))
 }
 
 /// [`crate::geometry::plane::intersect`] on 8 lanes against `best`.
@@ -121,7 +135,9 @@ impl Closest<'_> {
         let mut best = r.t_max;
         let mut prim = [PrimId::NONE.0; LANES];
         for (i, s) in self.spheres.iter().enumerate() {
-            let (t, hit) = sphere8(r, s, &best);
+            let Some((t, hit)) = sphere8(r, s, &best) else {
+                continue;
+            };
             for l in 0..LANES {
                 best[l] = if hit[l] { t[l] } else { best[l] };
                 prim[l] = if hit[l] { i as u32 } else { prim[l] };
@@ -195,7 +211,9 @@ impl Kernel for Occluded<'_> {
             );
             let mut any = [false; LANES];
             for s in self.spheres {
-                let (_, hit) = sphere8(&r, s, &r.t_max);
+                let Some((_, hit)) = sphere8(&r, s, &r.t_max) else {
+                    continue;
+                };
                 for l in 0..LANES {
                     any[l] |= hit[l];
                 }
@@ -283,57 +301,92 @@ fn nudge(v: f32, offset: f32) -> f32 {
     }
 }
 
-impl Kernel for Surfaces<'_, '_> {
-    type Output = ();
+impl Surfaces<'_, '_> {
+    /// Rows `start..end` (at most [`LANES`]): gathered into lanes, computed branch-free, stored.
     #[inline(always)]
-    fn run(self, _level: Level) {
-        let n = self.prim.len();
+    fn group(&mut self, start: usize, end: usize) {
         let last = self.prims.len() - 1;
-        let g2 = gamma(2);
-        let g4 = gamma(4);
-        let g5 = gamma(5);
-        for i in 0..n {
-            let e = self.prims[(self.prim[i].0 as usize).min(last)];
-            let (o, d, t) = (self.origins[i], self.dirs[i], self.t[i]);
-            let p = [o.x + t * d.x, o.y + t * d.y, o.z + t * d.z];
-            let c = e.centre;
-            let nn = e.normal;
+        let (g2, g4, g5) = (gamma(2), gamma(4), gamma(5));
+        let mut o = [[0.0f32; LANES]; 3];
+        let mut d = [[0.0f32; LANES]; 3];
+        let mut t = [0.0f32; LANES];
+        let mut c = [[0.0f32; LANES]; 3];
+        let mut nn = [[0.0f32; LANES]; 3];
+        let mut radius = [0.0f32; LANES];
+        let mut sphere = [false; LANES];
+        let mut material = [0u32; LANES];
+        for (l, i) in (start..end).enumerate() {
+            let e = &self.prims[(self.prim[i].0 as usize).min(last)];
+            for k in 0..3 {
+                o[k][l] = self.origins[i][k];
+                d[k][l] = self.dirs[i][k];
+                c[k][l] = e.centre[k];
+                nn[k][l] = e.normal[k];
+            }
+            (t[l], radius[l], sphere[l], material[l]) = (self.t[i], e.radius, e.sphere, e.material);
+        }
+        let mut point = [[0.0f32; LANES]; 3];
+        let mut normal = [[0.0f32; LANES]; 3];
+        let mut spawn = [[0.0f32; LANES]; 3];
+        for l in 0..LANES {
+            let p = [0, 1, 2].map(|k| o[k][l] + t[l] * d[k][l]);
             // Sphere: re-projected through the centre.
-            let a = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+            let a = [0, 1, 2].map(|k| p[k] - c[k][l]);
             let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
             let rcp = 1.0 / len;
-            let sn = [a[0] * rcp, a[1] * rcp, a[2] * rcp];
-            let v = [e.radius * sn[0], e.radius * sn[1], e.radius * sn[2]];
-            let sp = [c[0] + v[0], c[1] + v[1], c[2] + v[2]];
+            let sn = a.map(|x| x * rcp);
+            let v = sn.map(|x| radius[l] * x);
+            let sp = [0, 1, 2].map(|k| c[k][l] + v[k]);
             // Plane: projected along its normal.
-            let s = a[0] * nn[0] + a[1] * nn[1] + a[2] * nn[2];
-            let pp = [p[0] - s * nn[0], p[1] - s * nn[1], p[2] - s * nn[2]];
-            let s_error = g4 * ((a[0] * nn[0]).abs() + (a[1] * nn[1]).abs() + (a[2] * nn[2]).abs());
-            let mut point = [0.0f32; 3];
+            let n = [nn[0][l], nn[1][l], nn[2][l]];
+            let s = a[0] * n[0] + a[1] * n[1] + a[2] * n[2];
+            let pp = [0, 1, 2].map(|k| p[k] - s * n[k]);
+            let s_error = g4 * ((a[0] * n[0]).abs() + (a[1] * n[1]).abs() + (a[2] * n[2]).abs());
+            let mut pt = [0.0f32; 3];
             let mut geo = [0.0f32; 3];
             let mut err = [0.0f32; 3];
             for k in 0..3 {
                 let sphere_err = g5 * v[k].abs() + g2 * sp[k].abs();
-                let plane_err = nn[k].abs() * s_error + g2 * (pp[k].abs() + (s * nn[k]).abs());
-                point[k] = if e.sphere { sp[k] } else { pp[k] };
-                geo[k] = if e.sphere { sn[k] } else { nn[k] };
-                err[k] = if e.sphere { sphere_err } else { plane_err };
+                let plane_err = n[k].abs() * s_error + g2 * (pp[k].abs() + (s * n[k]).abs());
+                pt[k] = if sphere[l] { sp[k] } else { pp[k] };
+                geo[k] = if sphere[l] { sn[k] } else { n[k] };
+                err[k] = if sphere[l] { sphere_err } else { plane_err };
             }
-            let flip = geo[0] * d.x + geo[1] * d.y + geo[2] * d.z > 0.0;
-            let normal = geo.map(|g| if flip { -g } else { g });
-            let dd = normal[0].abs() * err[0] + normal[1].abs() * err[1] + normal[2].abs() * err[2];
-            let mut po = [0.0f32; 3];
+            let flip = geo[0] * d[0][l] + geo[1] * d[1][l] + geo[2] * d[2][l] > 0.0;
+            let nf = geo.map(|g| if flip { -g } else { g });
+            let dd = nf[0].abs() * err[0] + nf[1].abs() * err[1] + nf[2].abs() * err[2];
+            let po = [0, 1, 2].map(|k| {
+                let offset = dd * nf[k];
+                nudge(pt[k] + offset, offset)
+            });
+            let finite = po[0].is_finite() && po[1].is_finite() && po[2].is_finite();
             for k in 0..3 {
-                let offset = dd * normal[k];
-                po[k] = nudge(point[k] + offset, offset);
+                point[k][l] = pt[k];
+                normal[k][l] = nf[k];
+                spawn[k][l] = if finite { po[k] } else { pt[k] };
             }
-            let finite = po.iter().all(|x| x.is_finite());
-            let spawn = if finite { po } else { point };
-            self.out.point[i] = Vec3::from(point);
-            self.out.normal[i] = Vec3::from(normal);
-            self.out.shading[i] = Vec3::from(normal);
-            self.out.spawn[i] = Vec3::from(spawn);
-            self.out.material[i] = e.material;
+        }
+        for (l, i) in (start..end).enumerate() {
+            let col = |x: &[[f32; LANES]; 3]| Vec3::new(x[0][l], x[1][l], x[2][l]);
+            self.out.point[i] = col(&point);
+            self.out.normal[i] = col(&normal);
+            self.out.shading[i] = col(&normal);
+            self.out.spawn[i] = col(&spawn);
+            self.out.material[i] = material[l];
+        }
+    }
+}
+
+impl Kernel for Surfaces<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(mut self, _level: Level) {
+        let n = self.prim.len();
+        let mut start = 0;
+        while start < n {
+            let end = (start + LANES).min(n);
+            self.group(start, end);
+            start = end;
         }
     }
 }
