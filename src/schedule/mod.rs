@@ -23,6 +23,7 @@ use std::fmt;
 use std::time::Instant;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::film::{Film, PixelSink, SampleBuffer, resolve_wave};
 use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, ShadowQueue};
@@ -44,10 +45,11 @@ use crate::world::World;
 pub use observer::{Observer, Progress, Queues, StageRun};
 pub use stage::Stage;
 
-/// Default cap on samples per wave: bounds memory whatever the samples per pixel. 2^16 samples
-/// keep a wave's queues at a few MB (in L3): scene A at 64 spp peaks at 26 MB instead of 272 MB
-/// with 2^20, at the same speed (1.96 vs 2.00 s, one run each, 2 threads).
-pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 16;
+/// Default cap on samples per wave: bounds memory whatever the samples per pixel. 2^12 samples
+/// keep a wave's queues at about 2 MB, near the core's L2 (512 KiB on the EPYC used for tuning),
+/// and a render traces one wave per thread at once; CPU time is flat from 2^10 to 2^13 and 10%
+/// above it at 2^16 (scene A, 16 spp, 1 thread), whose first-touch faults also cost 1 spp ~25%.
+pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 12;
 
 /// Largest accepted cap on samples per wave: a wave's sample slots are `u32`, and its queues must
 /// fit in memory (2^28 samples already need tens of GB).
@@ -351,61 +353,109 @@ pub fn render_into(
     let pipeline = Pipeline::for_scene(scene);
     let region = options.region_of(scene);
     let total = region.pixels();
-    let mut ws = WaveQueues::default();
     let mut done = 0;
     let traced_lights = pipeline.traced_lights(world);
-
-    for wave in waves(scene, options) {
-        ws.samples.reset(wave.len());
-        'depths: for plan in &pipeline.depths {
-            let mut call = |stage, pass: &ShadowPass, ws: &mut WaveQueues| {
-                observer.before(stage, plan.depth, &ws.queues(&wave));
-                let start = Instant::now();
-                let (rays_in, rays_out) =
-                    run_stage(stage, scene, world, &pipeline, &wave, pass, ws);
-                let run = StageRun {
-                    stage,
-                    depth: plan.depth,
-                    first_pass: pass.is_first(),
-                    rays_in,
-                    rays_out,
-                    elapsed: start.elapsed(),
-                };
-                observer.after(&run, &ws.queues(&wave));
-            };
-            for &stage in &plan.stages {
-                match stage {
-                    // Every ray of the previous depth missed or stopped.
-                    Stage::Intersect if ws.rays.is_empty() => break 'depths,
-                    // Direct light, a bounded pass at a time: shade spawns the shadow rays of a
-                    // block of hits × lights and shadow traces them before the next block.
-                    Stage::Shade => {
-                        let shadow = plan.stages.contains(&Stage::Shadow);
-                        let passes =
-                            ShadowPass::plan(ws.hits.len(), traced_lights, options.shadow_rows);
-                        for pass in passes {
-                            call(Stage::Shade, &pass, &mut ws);
-                            if shadow {
-                                call(Stage::Shadow, &pass, &mut ws);
-                            }
-                        }
-                    }
-                    Stage::Shadow => {} // run with each shade pass, above
-                    stage => call(stage, &ShadowPass::default(), &mut ws),
-                }
+    let threads = rayon::current_num_threads();
+    let trace = |wave: &Wave, ws: &mut WaveQueues, observer: &mut dyn Observer| {
+        trace_wave(
+            (scene, world, &pipeline),
+            options,
+            traced_lights,
+            wave,
+            ws,
+            observer,
+        );
+    };
+    if observer.watches_stages() || threads == 1 {
+        // One wave at a time, each stage's kernels over all threads; observers see every call.
+        let mut ws = WaveQueues::default();
+        for wave in waves(scene, options) {
+            trace(&wave, &mut ws, &mut observer);
+            sink.put(PixelIndex(wave.first), &ws.pixels);
+            done += u64::from(wave.pixels);
+            observer.wave_done(done, total);
+            if !sink.accepts() {
+                break;
             }
-            // The next depth traces the reflections this one spawned.
-            std::mem::swap(&mut ws.rays, &mut ws.next);
-            ws.next.clear();
         }
-        resolve_wave(&ws.samples, &wave, &mut ws.pixels);
-        sink.put(PixelIndex(wave.first), &ws.pixels);
-        done += u64::from(wave.pixels);
-        observer.wave_done(done, total);
+        return;
+    }
+    // One wave per thread at once, each on its own queues (kept in its core's cache); the waves
+    // of a batch reach the sink in order.
+    let mut queues: Vec<WaveQueues> = (0..threads).map(|_| WaveQueues::default()).collect();
+    let mut all = waves(scene, options);
+    loop {
+        let batch: Vec<Wave> = all.by_ref().take(threads).collect();
+        if batch.is_empty() {
+            break;
+        }
+        queues
+            .par_iter_mut()
+            .zip(&batch)
+            .for_each(|(ws, wave)| trace(wave, ws, &mut ()));
+        for (ws, wave) in queues.iter().zip(&batch) {
+            sink.put(PixelIndex(wave.first), &ws.pixels);
+            done += u64::from(wave.pixels);
+            observer.wave_done(done, total);
+        }
         if !sink.accepts() {
             break;
         }
     }
+}
+
+/// Traces one wave: each depth of the pipeline, each of its stages in order (shade and shadow
+/// once per [`ShadowPass`]), then resolves the wave's samples into `ws.pixels`.
+fn trace_wave(
+    (scene, world, pipeline): (&Scene, &World, &Pipeline),
+    options: &RenderOptions,
+    traced_lights: usize,
+    wave: &Wave,
+    ws: &mut WaveQueues,
+    observer: &mut dyn Observer,
+) {
+    ws.samples.reset(wave.len());
+    'depths: for plan in &pipeline.depths {
+        let mut call = |stage, pass: &ShadowPass, ws: &mut WaveQueues| {
+            observer.before(stage, plan.depth, &ws.queues(wave));
+            let start = Instant::now();
+            let (rays_in, rays_out) = run_stage(stage, scene, world, pipeline, wave, pass, ws);
+            let run = StageRun {
+                stage,
+                depth: plan.depth,
+                first_pass: pass.is_first(),
+                rays_in,
+                rays_out,
+                elapsed: start.elapsed(),
+            };
+            observer.after(&run, &ws.queues(wave));
+        };
+        for &stage in &plan.stages {
+            match stage {
+                // Every ray of the previous depth missed or stopped.
+                Stage::Intersect if ws.rays.is_empty() => break 'depths,
+                // Direct light, a bounded pass at a time: shade spawns the shadow rays of a
+                // block of hits × lights and shadow traces them before the next block.
+                Stage::Shade => {
+                    let shadow = plan.stages.contains(&Stage::Shadow);
+                    let passes =
+                        ShadowPass::plan(ws.hits.len(), traced_lights, options.shadow_rows);
+                    for pass in passes {
+                        call(Stage::Shade, &pass, ws);
+                        if shadow {
+                            call(Stage::Shadow, &pass, ws);
+                        }
+                    }
+                }
+                Stage::Shadow => {} // run with each shade pass, above
+                stage => call(stage, &ShadowPass::default(), ws),
+            }
+        }
+        // The next depth traces the reflections this one spawned.
+        std::mem::swap(&mut ws.rays, &mut ws.next);
+        ws.next.clear();
+    }
+    resolve_wave(&ws.samples, wave, &mut ws.pixels);
 }
 
 /// Runs one stage's kernels on a wave's queues; returns (rays in, rays out). The one dispatch

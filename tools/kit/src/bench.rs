@@ -679,12 +679,14 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
             .push(Record::new(&scene.name, stage, depth, threads, rays, s));
     }
 
-    let mut traffic = TrafficMeter::default();
+    // The frame as `render` traces it: no stage observer, so one wave per thread at once.
     let frame = median_of(repeat, || {
-        traffic = TrafficMeter::default();
-        render_observed(scene, &world, &RenderOptions::default(), &mut traffic);
+        render_observed(scene, &world, &RenderOptions::default(), ());
     });
     if world.triangles().is_none() {
+        // Queue traffic counted on one more, untimed, render (the meter watches every stage).
+        let mut traffic = TrafficMeter::default();
+        render_observed(scene, &world, &RenderOptions::default(), &mut traffic);
         let samples =
             scene.image.width as f64 * scene.image.height as f64 * scene.image.samples as f64;
         let bytes = traffic.bytes as f64 / samples;
