@@ -390,7 +390,7 @@ impl HitLanes {
                 lp.z - self.p[2][l],
             ];
             let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
-            valid[l] = dist > 0.0 && dist.is_finite();
+            valid[l] = (dist > 0.0) & dist.is_finite();
             let u = to.map(|c| c / dist);
             let n = [self.n[0][l], self.n[1][l], self.n[2][l]];
             n_dot_l[l] = n[0] * u[0] + n[1] * u[1] + n[2] * u[2];
@@ -420,7 +420,8 @@ impl HitLanes {
                 c[k] = if self.spec[l] { with_spec } else { kd };
                 c[k] *= light.intensity[k];
             }
-            let lit = valid[l] && n_dot_l[l] > 0.0 && (c[0] != 0.0 || c[1] != 0.0 || c[2] != 0.0);
+            let lit =
+                valid[l] & (n_dot_l[l] > 0.0) & ((c[0] != 0.0) | (c[1] != 0.0) | (c[2] != 0.0));
             let scale = 1.0 - self.alpha[l];
             for k in 0..3 {
                 let r = self.w[k][l] * scale * c[k];

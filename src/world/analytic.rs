@@ -91,11 +91,11 @@ fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], 
         let near = if le { t0 } else { t1 };
         let far = if le { t1 } else { t0 };
         let tm = best[l] as f64;
-        let near_ok = near > 0.0 && near < tm;
-        let far_ok = far > 0.0 && far < tm;
+        let near_ok = (near > 0.0) & (near < tm);
+        let far_ok = (far > 0.0) & (far < tm);
         let t64 = if near_ok { near } else { far };
         let t = t64 as f32;
-        hit[l] = disc[l] >= 0.0 && (near_ok || far_ok) && t > 0.0 && t < best[l];
+        hit[l] = (disc[l] >= 0.0) & (near_ok | far_ok) & (t > 0.0) & (t < best[l]);
         t_out[l] = t;
     }
     Some((t_out, hit))
@@ -112,7 +112,7 @@ fn plane8(r: &Rays8, p: &Plane, best: &[f32; LANES]) -> ([f32; LANES], [bool; LA
         let num = (q.x - r.o[0][l]) * n.x + (q.y - r.o[1][l]) * n.y + (q.z - r.o[2][l]) * n.z;
         let t = num / denom;
         t_out[l] = t;
-        hit[l] = t > 0.0 && t < best[l];
+        hit[l] = (t > 0.0) & (t < best[l]);
     }
     (t_out, hit)
 }
@@ -282,7 +282,7 @@ fn nudge(v: f32, offset: f32) -> f32 {
     let up = offset > 0.0;
     let down = offset < 0.0;
     // Infinities in the direction of the step and NaN stay.
-    let stay = v.is_nan() || (up && v == f32::INFINITY) || (down && v == f32::NEG_INFINITY);
+    let stay = v.is_nan() | (up & (v == f32::INFINITY)) | (down & (v == f32::NEG_INFINITY));
     // Both zeros step from +0.0 up and from -0.0 down.
     let z = if up { 0.0f32 } else { -0.0f32 };
     let w = if v == 0.0 { z } else { v };
@@ -294,7 +294,7 @@ fn nudge(v: f32, offset: f32) -> f32 {
     } else {
         bits.wrapping_sub(1)
     };
-    if stay || !(up || down) {
+    if stay | !(up | down) {
         v
     } else {
         f32::from_bits(moved)
@@ -359,7 +359,7 @@ impl Surfaces<'_, '_> {
                 let offset = dd * nf[k];
                 nudge(pt[k] + offset, offset)
             });
-            let finite = po[0].is_finite() && po[1].is_finite() && po[2].is_finite();
+            let finite = po[0].is_finite() & po[1].is_finite() & po[2].is_finite();
             for k in 0..3 {
                 point[k][l] = pt[k];
                 normal[k][l] = nf[k];
