@@ -62,14 +62,22 @@ pub struct Snapshot {
     pub depths: Vec<DepthSnapshot>,
 }
 
-/// The observer that copies each stage's input queues out of the schedule.
+/// The observer that copies each stage's input queues out of the schedule: those of the first
+/// wave only (a row of the image can hold several waves).
 #[derive(Default)]
 struct Capture {
     depths: Vec<DepthSnapshot>,
+    waves: u32,
 }
 
 impl Observer for Capture {
     fn before(&mut self, stage: Stage, depth: u32, q: &Queues<'_>) {
+        if stage == Stage::Generate {
+            self.waves += 1;
+        }
+        if self.waves > 1 {
+            return;
+        }
         if stage == Stage::Intersect {
             self.depths.push(DepthSnapshot {
                 depth,
@@ -83,6 +91,9 @@ impl Observer for Capture {
     }
 
     fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
+        if self.waves > 1 {
+            return;
+        }
         let Some(d) = self.depths.last_mut() else {
             return;
         };
