@@ -392,13 +392,9 @@ impl World {
         for start in (0..origins.len()).step_by(BLOCK) {
             let end = (start + BLOCK).min(origins.len());
             let m = end - start;
-            for k in 0..m {
-                let i = start + k;
-                limit[k] = if out_prim[i].is_hit() {
-                    out_t[i]
-                } else {
-                    t_max[i]
-                };
+            let rows = out_prim[start..end].iter().zip(&out_t[start..end]);
+            for ((l, (p, &t)), &own) in limit.iter_mut().zip(rows).zip(&t_max[start..end]) {
+                *l = if p.is_hit() { t } else { own };
             }
             t.tree.intersect_closest_batch(
                 &origins[start..end],
@@ -407,9 +403,11 @@ impl World {
                 &mut tri_t[..m],
                 &mut tri[..m],
             );
-            for k in 0..m {
-                if tri[k] != u32::MAX {
-                    (out_t[start + k], out_prim[start + k]) = (tri_t[k], PrimId(base + tri[k]));
+            let found = tri[..m].iter().zip(&tri_t[..m]);
+            let rows = out_t[start..end].iter_mut().zip(&mut out_prim[start..end]);
+            for ((t, p), (&k, &tt)) in rows.zip(found) {
+                if k != u32::MAX {
+                    (*t, *p) = (tt, PrimId(base + k));
                 }
             }
         }
@@ -469,12 +467,9 @@ impl World {
         for start in (0..origins.len()).step_by(BLOCK) {
             let end = (start + BLOCK).min(origins.len());
             let m = end - start;
-            for k in 0..m {
-                limit[k] = if out[start + k] {
-                    0.0
-                } else {
-                    t_max[start + k]
-                };
+            let rows = out[start..end].iter().zip(&t_max[start..end]);
+            for (l, (&hit, &own)) in limit.iter_mut().zip(rows) {
+                *l = if hit { 0.0 } else { own };
             }
             t.tree.intersect_occluded_batch(
                 &origins[start..end],
@@ -482,8 +477,8 @@ impl World {
                 &limit[..m],
                 &mut blocked[..m],
             );
-            for k in 0..m {
-                out[start + k] |= blocked[k];
+            for (o, &b) in out[start..end].iter_mut().zip(&blocked[..m]) {
+                *o |= b;
             }
         }
     }

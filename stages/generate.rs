@@ -5,6 +5,9 @@
 //! Writes: [`CameraRays`] — every column of the depth-0 `RayQueue`, one row per sample, slots in
 //! order.
 
+// Lane loops index several parallel `[_; LANES]` arrays by lane: an index is clearer than zips.
+#![allow(clippy::needless_range_loop)]
+
 use glam::Vec3;
 use rayon::prelude::*;
 

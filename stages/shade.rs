@@ -13,6 +13,9 @@
 //! memory is bounded however many lights there are. Each sample still receives its emitted
 //! radiance first and then its lights in index order, so the image does not depend on the passes.
 
+// Lane loops index several parallel `[_; LANES]` arrays by lane: an index is clearer than zips.
+#![allow(clippy::needless_range_loop)]
+
 use std::ops::Range;
 
 use glam::Vec3;

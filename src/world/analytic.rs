@@ -11,6 +11,9 @@
 //! [`World::intersect_closest`]: super::World::intersect_closest
 //! [`World::intersect_occluded`]: super::World::intersect_occluded
 
+// Lane loops index several parallel `[_; LANES]` arrays by lane: an index is clearer than zips.
+#![allow(clippy::needless_range_loop)]
+
 use glam::Vec3;
 
 use super::World;
