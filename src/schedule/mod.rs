@@ -20,6 +20,7 @@ pub mod observer;
 pub mod stage;
 
 use std::fmt;
+use std::sync::Mutex;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -380,21 +381,36 @@ pub fn render_into(
         }
         return;
     }
-    // One wave per thread at once, each on its own queues (kept in its core's cache); the waves
-    // of a batch reach the sink in order.
-    let mut queues: Vec<WaveQueues> = (0..threads).map(|_| WaveQueues::default()).collect();
+    // Several waves at once, each traced whole by one thread on a set of queues taken from a
+    // pool (kept warm in its cache) and given back; threads take waves as they finish, and the
+    // waves of a batch reach the sink in order.
+    let pool: Mutex<Vec<WaveQueues>> = Mutex::new(vec![]);
+    let take = || pool.lock().map(|mut p| p.pop()).unwrap_or(None);
+    let give = |ws: WaveQueues| {
+        if let Ok(mut p) = pool.lock() {
+            p.push(ws);
+        }
+    };
+    let mut pixels: Vec<Vec<Vec3>> = vec![];
     let mut all = waves(scene, options);
     loop {
-        let batch: Vec<Wave> = all.by_ref().take(threads).collect();
+        let batch: Vec<Wave> = all.by_ref().take(WAVES_PER_THREAD * threads).collect();
         if batch.is_empty() {
             break;
         }
-        queues
+        pixels.resize_with(batch.len(), Vec::new);
+        pixels[..batch.len()]
             .par_iter_mut()
             .zip(&batch)
-            .for_each(|(ws, wave)| trace(wave, ws, &mut ()));
-        for (ws, wave) in queues.iter().zip(&batch) {
-            sink.put(PixelIndex(wave.first), &ws.pixels);
+            .with_max_len(1)
+            .for_each(|(px, wave)| {
+                let mut ws = take().unwrap_or_default();
+                trace(wave, &mut ws, &mut ());
+                std::mem::swap(px, &mut ws.pixels);
+                give(ws);
+            });
+        for (px, wave) in pixels.iter().zip(&batch) {
+            sink.put(PixelIndex(wave.first), px);
             done += u64::from(wave.pixels);
             observer.wave_done(done, total);
         }
@@ -403,6 +419,10 @@ pub fn render_into(
         }
     }
 }
+
+/// Waves per thread in a batch of the wave-parallel path: threads take the batch's waves as they
+/// finish (a slow or descheduled thread holds up only the end of a batch).
+const WAVES_PER_THREAD: usize = 8;
 
 /// Traces one wave: each depth of the pipeline, each of its stages in order (shade and shadow
 /// once per [`ShadowPass`]), then resolves the wave's samples into `ws.pixels`.
