@@ -110,7 +110,7 @@ impl ShadeSettings {
     }
 }
 
-/// Upper bound on a pass's rows: row indices of a pass are `u32` ([`RowIndex`]).
+/// Upper bound on a pass's rows: row indices of a pass are `u32` ([`RowIndex`](crate::queue::RowIndex)).
 pub const MAX_SHADOW_ROWS: usize = u32::MAX as usize;
 
 /// One shade → shadow pass of a depth: the shadow rays of hits `hits` (rows of the hit queue)

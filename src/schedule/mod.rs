@@ -330,11 +330,15 @@ pub fn render_observed(
 }
 
 /// Renders `scene`, showing every stage call and wave to `observer` and handing each wave's
-/// resolved pixels to `sink` as soon as the wave is done. This is the renderer: for each wave, for
-/// each depth of the [`Pipeline`], each of that depth's stages in order — shade and shadow once
-/// per [`ShadowPass`] of at most `options.shadow_rows` shadow rays. Stops early, after a wave, when
-/// the sink no longer [accepts](PixelSink::accepts) pixels. The sink receives the pixels of
-/// [`RenderOptions::region_of`] the scene, row-major within the region.
+/// resolved pixels to `sink`, in wave order. This is the renderer: for each wave, for each depth
+/// of the [`Pipeline`], each of that depth's stages in order (`trace_wave`) — shade and shadow
+/// once per [`ShadowPass`] of at most `options.shadow_rows` shadow rays. When the observer
+/// [watches stages](Observer::watches_stages) (or on one thread) waves are traced one at a time,
+/// each kernel split over the threads; otherwise each thread traces whole waves, a batch of
+/// `WAVES_PER_THREAD` waves per thread at a time, and the batch's waves go to the sink in
+/// order. The image is the same either way (every kernel is deterministic). Stops early, after a
+/// wave (or a batch), when the sink no longer [accepts](PixelSink::accepts) pixels. The sink
+/// receives the pixels of [`RenderOptions::region_of`] the scene, row-major within the region.
 pub fn render_into(
     scene: &Scene,
     world: &World,
