@@ -2,7 +2,7 @@
 //! computes the same sample positions in any order.
 
 /// A 32-bit integer hash with good avalanche (the "lowbias32" finaliser by C. Wellons).
-#[inline]
+#[inline(always)]
 pub fn hash32(mut x: u32) -> u32 {
     x ^= x >> 16;
     x = x.wrapping_mul(0x7feb_352d);
@@ -13,7 +13,7 @@ pub fn hash32(mut x: u32) -> u32 {
 }
 
 /// A uniform float in `[0, 1)` from a hash of the three keys.
-#[inline]
+#[inline(always)]
 pub fn uniform(seed: u32, a: u32, b: u32) -> f32 {
     let h = hash32(seed ^ hash32(a ^ hash32(b.wrapping_add(0x9e37_79b9))));
     // 24 high bits → exactly representable floats in [0, 1).

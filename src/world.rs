@@ -15,7 +15,9 @@ use crate::mesh::{NO_MATERIAL, ObjMesh, ObjRead};
 use crate::queue::PrimId;
 use crate::scene::{Material, Normals, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
 
+mod analytic;
 mod cached;
+pub use analytic::SurfaceOut;
 pub use cached::{CacheStatus, Setup};
 
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.
@@ -322,8 +324,11 @@ impl World {
     }
 
     /// [`World::intersect_closest`] for many rays, bit-identical to it row for row: `out_t[i]`,
-    /// `out_prim[i]` receive ray `i`'s answer. Mesh-only scenes with the watertight test go
-    /// through [`KdAccel::intersect_closest_batch`] (4-ray packets); others ray by ray.
+    /// `out_prim[i]` receive ray `i`'s answer. Spheres and planes go through one SIMD batch
+    /// kernel (`world::analytic`), then the mesh through [`KdAccel::intersect_closest_batch`]
+    /// (4-ray packets) with each ray's `t_max` lowered to its analytic hit — the scalar query's
+    /// order, and its ties (analytic ids are lower, and triangles must be strictly nearer).
+    /// Worlds with the naive sphere test or a non-watertight triangle test go ray by ray.
     /// Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
@@ -335,25 +340,82 @@ impl World {
     ) {
         let n = origins.len();
         assert!(dirs.len() == n && t_max.len() == n && out_t.len() == n && out_prim.len() == n);
+        if !self.batch_kernels() {
+            for i in 0..n {
+                (out_t[i], out_prim[i]) = self.intersect_closest(origins[i], dirs[i], t_max[i]);
+            }
+            return;
+        }
+        let analytic = !(self.spheres.is_empty() && self.planes.is_empty());
         match &self.triangles {
-            Some(t) if self.mesh_only_watertight() => {
+            Some(t) if !analytic => {
                 // `PrimId` is a transparent `u32`; triangle ids start at 0 in a mesh-only world,
                 // and a miss (`u32::MAX`) is `PrimId::NONE`.
                 let tri: &mut [u32] = bytemuck::cast_slice_mut(out_prim);
                 t.tree
                     .intersect_closest_batch(origins, dirs, t_max, out_t, tri);
             }
-            _ => {
-                for i in 0..n {
-                    (out_t[i], out_prim[i]) = self.intersect_closest(origins[i], dirs[i], t_max[i]);
+            tris => {
+                analytic::closest(analytic::Closest {
+                    spheres: &self.spheres,
+                    planes: &self.planes,
+                    origins,
+                    dirs,
+                    t_max,
+                    out_t,
+                    out_prim,
+                });
+                if let Some(t) = tris {
+                    self.mesh_closest_after_analytic(t, origins, dirs, t_max, out_t, out_prim);
                 }
             }
         }
     }
 
-    /// [`World::intersect_occluded`] for many rays into `out`, bit-identical to it row for row
-    /// (mesh-only scenes with the watertight test go through
-    /// [`KdAccel::intersect_occluded_batch`]). Panics if the slices' lengths differ.
+    /// The mesh part of a mixed world's closest hits, after the analytic kernel has written its
+    /// answers: each ray is traced with `t_max` = its analytic hit (or its own `t_max`), and a
+    /// triangle hit, necessarily nearer, replaces the analytic one.
+    fn mesh_closest_after_analytic(
+        &self,
+        t: &Triangles,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out_t: &mut [f32],
+        out_prim: &mut [PrimId],
+    ) {
+        const BLOCK: usize = 256;
+        let base = self.triangle_base();
+        let mut limit = [0.0f32; BLOCK];
+        let mut tri_t = [0.0f32; BLOCK];
+        let mut tri = [0u32; BLOCK];
+        for start in (0..origins.len()).step_by(BLOCK) {
+            let end = (start + BLOCK).min(origins.len());
+            let m = end - start;
+            let rows = out_prim[start..end].iter().zip(&out_t[start..end]);
+            for ((l, (p, &t)), &own) in limit.iter_mut().zip(rows).zip(&t_max[start..end]) {
+                *l = if p.is_hit() { t } else { own };
+            }
+            t.tree.intersect_closest_batch(
+                &origins[start..end],
+                &dirs[start..end],
+                &limit[..m],
+                &mut tri_t[..m],
+                &mut tri[..m],
+            );
+            let found = tri[..m].iter().zip(&tri_t[..m]);
+            let rows = out_t[start..end].iter_mut().zip(&mut out_prim[start..end]);
+            for ((t, p), (&k, &tt)) in rows.zip(found) {
+                if k != u32::MAX {
+                    (*t, *p) = (tt, PrimId(base + k));
+                }
+            }
+        }
+    }
+
+    /// [`World::intersect_occluded`] for many rays into `out`, bit-identical to it row for row:
+    /// spheres and planes through one SIMD batch kernel, then the rays they leave unblocked
+    /// through [`KdAccel::intersect_occluded_batch`]. Panics if the slices' lengths differ.
     pub fn intersect_occluded_batch(
         &self,
         origins: &[Vec3],
@@ -363,25 +425,70 @@ impl World {
     ) {
         let n = origins.len();
         assert!(dirs.len() == n && t_max.len() == n && out.len() == n);
-        match &self.triangles {
-            Some(t) if self.mesh_only_watertight() => {
-                t.tree.intersect_occluded_batch(origins, dirs, t_max, out);
+        if !self.batch_kernels() {
+            for i in 0..n {
+                out[i] = self.intersect_occluded(origins[i], dirs[i], t_max[i]);
             }
-            _ => {
-                for i in 0..n {
-                    out[i] = self.intersect_occluded(origins[i], dirs[i], t_max[i]);
+            return;
+        }
+        let analytic = !(self.spheres.is_empty() && self.planes.is_empty());
+        match &self.triangles {
+            Some(t) if !analytic => t.tree.intersect_occluded_batch(origins, dirs, t_max, out),
+            tris => {
+                analytic::occluded(analytic::Occluded {
+                    spheres: &self.spheres,
+                    planes: &self.planes,
+                    origins,
+                    dirs,
+                    t_max,
+                    out,
+                });
+                if let Some(t) = tris {
+                    self.mesh_occluded_after_analytic(t, origins, dirs, t_max, out);
                 }
             }
         }
     }
 
-    /// True when the world's only primitives are triangles, tested with the watertight test
-    /// (what the batch kernels of [`KdAccel`] compute).
-    fn mesh_only_watertight(&self) -> bool {
-        self.spheres.is_empty()
-            && self.planes.is_empty()
-            && self.triangle_base() == 0
-            && self.robustness.triangle == crate::scene::TriangleTest::Watertight
+    /// The mesh part of a mixed world's occlusion: rays already blocked by an analytic primitive
+    /// are traced with `t_max = 0` (nothing can be accepted, so they end at once) and stay
+    /// blocked; the others take the mesh's answer.
+    fn mesh_occluded_after_analytic(
+        &self,
+        t: &Triangles,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out: &mut [bool],
+    ) {
+        const BLOCK: usize = 256;
+        let mut limit = [0.0f32; BLOCK];
+        let mut blocked = [false; BLOCK];
+        for start in (0..origins.len()).step_by(BLOCK) {
+            let end = (start + BLOCK).min(origins.len());
+            let m = end - start;
+            let rows = out[start..end].iter().zip(&t_max[start..end]);
+            for (l, (&hit, &own)) in limit.iter_mut().zip(rows) {
+                *l = if hit { 0.0 } else { own };
+            }
+            t.tree.intersect_occluded_batch(
+                &origins[start..end],
+                &dirs[start..end],
+                &limit[..m],
+                &mut blocked[..m],
+            );
+            for (o, &b) in out[start..end].iter_mut().zip(&blocked[..m]) {
+                *o |= b;
+            }
+        }
+    }
+
+    /// True when the batch kernels compute what the scalar queries do: the stable sphere test
+    /// (the analytic kernel's) and the watertight triangle test (the kD packets').
+    fn batch_kernels(&self) -> bool {
+        (self.spheres.is_empty() || self.robustness.sphere == SphereTest::Stable)
+            && (self.triangles.is_none()
+                || self.robustness.triangle == crate::scene::TriangleTest::Watertight)
     }
 
     /// The surface at a hit: point, normal facing the incoming direction `d`, material, and the

@@ -5,12 +5,16 @@
 //! Writes: [`CameraRays`] — every column of the depth-0 `RayQueue`, one row per sample, slots in
 //! order.
 
+// Lane loops index several parallel `[_; LANES]` arrays by lane: an index is clearer than zips.
+#![allow(clippy::needless_range_loop)]
+
 use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
-use crate::sampling::Strata;
+use crate::sampling::{Strata, uniform};
 use crate::scene::{Camera, ImageSettings};
+use crate::simd::{Kernel, Level, dispatch};
 use crate::wave::Wave;
 
 crate::column_set! {
@@ -45,8 +49,106 @@ pub fn camera_ray(
     }
 }
 
-/// Fills `out` with the wave's camera rays, one per sample, in slot order.
+/// Rays per lane group of the kernel.
+const LANES: usize = 8;
+
+/// The generate kernel over one chunk of slots `first..first + direction.len()`: per group of 8
+/// slots, the pixel and stratum of each (stepped, never divided, from the chunk's first slot),
+/// then the jitter hash, the image-plane point and the normalised direction in lanes — the
+/// operations of [`camera_ray`] in its order, so every ray is bit-identical to it.
+struct CameraKernel<'a> {
+    camera: &'a Camera,
+    image: &'a ImageSettings,
+    wave: &'a Wave,
+    strata: &'a Strata,
+    first: u32,
+    direction: &'a mut [Vec3],
+}
+
+impl Kernel for CameraKernel<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self, _level: Level) {
+        let (cam, image, wave, strata) = (self.camera, self.image, self.wave, self.strata);
+        let region = wave.region;
+        let (nx, ny) = (image.width, image.height);
+        let spp = wave.samples.max(1);
+        // Where the chunk's first slot is: its pixel (column i, row j of the image) and sample.
+        let (pixel, mut s) = wave.pixel_of(SampleSlot(self.first));
+        let (mut pixel, mut i, mut j) = (pixel.0, pixel.0 % nx, pixel.0 / nx);
+        let jitter = strata.n > 1;
+        let (kf, mf) = (strata.k as f32, strata.m as f32);
+        let (mut sx, mut sy) = (s % strata.k.max(1), s / strata.k.max(1));
+        let (rl, tb) = (cam.r - cam.l, cam.t - cam.b);
+        let (nxf, nyf) = (nx as f32, ny as f32);
+        let (u, v, w) = (cam.u, cam.v, cam.w);
+        let dw = cam.d * w;
+        for out in self.direction.chunks_mut(LANES) {
+            let mut lp = [0u32; LANES];
+            let mut ls = [0u32; LANES];
+            let mut li = [0.0f32; LANES];
+            let mut lj = [0.0f32; LANES];
+            let mut lsx = [0.0f32; LANES];
+            let mut lsy = [0.0f32; LANES];
+            for l in 0..out.len() {
+                (lp[l], ls[l], li[l], lj[l]) = (pixel, s, i as f32, j as f32);
+                (lsx[l], lsy[l]) = (sx as f32, sy as f32);
+                // The next slot: the next sample, or the next pixel of the region (row-major).
+                s += 1;
+                sx += 1;
+                if sx == strata.k {
+                    (sx, sy) = (0, sy + 1);
+                }
+                if s == spp {
+                    (s, sx, sy) = (0, 0, 0);
+                    if i + 1 < region.x1 {
+                        (i, pixel) = (i + 1, pixel + 1);
+                    } else {
+                        (i, j) = (region.x0, j + 1);
+                        pixel = j * nx + i;
+                    }
+                }
+            }
+            let mut d = [[0.0f32; LANES]; 3];
+            for l in 0..LANES {
+                let (dx, dy) = if jitter {
+                    let jx = uniform(image.seed, lp[l], 2 * ls[l]);
+                    let jy = uniform(image.seed, lp[l], 2 * ls[l] + 1);
+                    ((lsx[l] + jx) / kf, (lsy[l] + jy) / mf)
+                } else {
+                    (0.5, 0.5)
+                };
+                let (x, y) = (li[l] + dx, lj[l] + dy);
+                let us = cam.l + rl * x / nxf;
+                let vs = cam.t - tb * y / nyf;
+                let px = us * u.x + vs * v.x - dw.x;
+                let py = us * u.y + vs * v.y - dw.y;
+                let pz = us * u.z + vs * v.z - dw.z;
+                let rcp = 1.0 / (px * px + py * py + pz * pz).sqrt();
+                (d[0][l], d[1][l], d[2][l]) = (px * rcp, py * rcp, pz * rcp);
+            }
+            for (l, o) in out.iter_mut().enumerate() {
+                *o = Vec3::new(d[0][l], d[1][l], d[2][l]);
+            }
+        }
+    }
+}
+
+/// Fills `out` with the wave's camera rays, one per sample, in slot order. The directions come
+/// from a SIMD kernel ([`crate::simd::dispatch`]) per chunk of slots, bit-identical to
+/// [`camera_ray`]; the other columns are constants and the slot number.
 pub fn generate_camera_rays(
+    camera: &Camera,
+    image: &ImageSettings,
+    wave: &Wave,
+    out: CameraRays<'_>,
+) {
+    generate_at(Level::current(), camera, image, wave, out);
+}
+
+/// [`generate_camera_rays`] with the kernel compiled for `level`.
+fn generate_at(
+    level: Level,
     camera: &Camera,
     image: &ImageSettings,
     wave: &Wave,
@@ -54,17 +156,30 @@ pub fn generate_camera_rays(
 ) {
     let n = wave.len();
     let strata = Strata::new(wave.samples);
-    let rows = || (0..n as u32).into_par_iter().with_min_len(MIN_CHUNK);
-    rows()
-        .map(|s| camera_ray(camera, image, wave, &strata, SampleSlot(s)).direction)
-        .collect_into_vec(out.direction);
+    out.direction.clear();
+    out.direction.resize(n, Vec3::ZERO);
+    out.direction
+        .par_chunks_mut(MIN_CHUNK)
+        .enumerate()
+        .for_each(|(c, direction)| {
+            let kernel = CameraKernel {
+                camera,
+                image,
+                wave,
+                strata: &strata,
+                first: (c * MIN_CHUNK) as u32,
+                direction,
+            };
+            dispatch(level, kernel);
+        });
     out.origin.clear();
     out.origin.resize(n, Vec3::ZERO); // the eye: the render frame's origin
     out.t_max.clear();
     out.t_max.resize(n, f32::INFINITY);
     out.weight.clear();
     out.weight.resize(n, Vec3::ONE);
-    rows().map(SampleSlot).collect_into_vec(out.slot);
+    out.slot.clear();
+    out.slot.extend((0..n as u32).map(SampleSlot));
 }
 
 #[cfg(test)]
@@ -110,5 +225,47 @@ mod tests {
         assert!((ray(SampleSlot(0)).direction - expected).length() < 1e-7);
         let expected = Vec3::new(0.05, -0.05, -0.1).normalize();
         assert!((ray(SampleSlot(3)).direction - expected).length() < 1e-7);
+    }
+
+    #[test]
+    fn the_kernel_gives_camera_ray_bit_for_bit_at_every_level() {
+        use crate::region::Region;
+        let scene = spheres();
+        let image = &scene.image;
+        let region = Region {
+            x0: 3,
+            x1: 20,
+            y0: 7,
+            y1: 30,
+        };
+        let waves = [
+            Wave::of_image(512, 512, 512 * 100 + 7, 300, 5),
+            Wave::of_image(512, 512, 1000, 1500, 1),
+            Wave::of_image(512, 512, 0, 40, 64),
+            Wave {
+                region,
+                image_width: 512,
+                first: 5,
+                pixels: 200,
+                samples: 3,
+            },
+        ];
+        for wave in waves {
+            let strata = Strata::new(wave.samples);
+            for level in Level::supported() {
+                let mut q = RayQueue::default();
+                generate_at(level, &scene.camera, image, &wave, CameraRays::of(&mut q));
+                assert_eq!(q.len(), wave.len());
+                for (s, d) in q.direction.iter().enumerate() {
+                    let r = camera_ray(&scene.camera, image, &wave, &strata, SampleSlot(s as u32));
+                    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                    assert_eq!(
+                        bits(*d),
+                        bits(r.direction),
+                        "{level:?} slot {s} of {wave:?}"
+                    );
+                }
+            }
+        }
     }
 }

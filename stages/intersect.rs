@@ -9,8 +9,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::queue::compact::{gather, kept_rows};
-use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue, RowIndex, SampleSlot};
+use crate::queue::compact::{count_chunks, split_by_counts};
+use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue, SampleSlot};
 use crate::world::World;
 
 crate::column_set! {
@@ -59,9 +59,8 @@ pub const TRACE_CHUNK: usize = 4 * MIN_CHUNK;
 /// of consecutive, coherent rays).
 pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
     let n = rays.origin.len();
-    out.t.clear();
+    // Every row is overwritten below: only a growing column needs filling.
     out.t.resize(n, f32::INFINITY);
-    out.prim.clear();
     out.prim.resize(n, PrimId::NONE);
     // Small queues in smaller chunks, so every thread gets some (answers do not depend on it).
     let chunk = TRACE_CHUNK.min((n / (4 * rayon::current_num_threads())).max(MIN_CHUNK));
@@ -81,20 +80,49 @@ pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'
         });
 }
 
-/// Copies the rays that hit, with their hits, into `out` in slot order. `rows` is scratch.
+/// Copies the rays that hit, with their hits, into `out` in slot order: a two-pass compaction
+/// over chunks of rows (count each chunk's hits, then each chunk writes its rows at its place).
+/// `counts` is scratch.
 pub fn compact_hits(
     rays: CompactRays<'_>,
     hits: CompactHits<'_>,
-    rows: &mut Vec<RowIndex>,
+    counts: &mut Vec<usize>,
     out: CompactOut<'_>,
 ) {
-    kept_rows(hits.prim.len(), |i| hits.prim[i].is_hit(), rows);
-    gather(rays.origin, rows, out.origin);
-    gather(rays.direction, rows, out.direction);
-    gather(rays.weight, rows, out.weight);
-    gather(rays.slot, rows, out.slot);
-    gather(hits.t, rows, out.t);
-    gather(hits.prim, rows, out.prim);
+    let prim = hits.prim;
+    count_chunks(
+        prim.len(),
+        MIN_CHUNK,
+        |r| prim[r].iter().filter(|p| p.is_hit()).count(),
+        counts,
+    );
+    (
+        (
+            split_by_counts(out.origin, counts),
+            split_by_counts(out.direction, counts),
+            split_by_counts(out.weight, counts),
+        ),
+        (
+            split_by_counts(out.slot, counts),
+            split_by_counts(out.t, counts),
+            split_by_counts(out.prim, counts),
+        ),
+    )
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(c, ((origin, direction, weight), (slot, t, out_prim)))| {
+            let first = c * MIN_CHUNK;
+            let rows = first..(first + MIN_CHUNK).min(prim.len());
+            let mut j = 0;
+            for i in rows {
+                if prim[i].is_hit() {
+                    (origin[j], direction[j]) = (rays.origin[i], rays.direction[i]);
+                    (weight[j], slot[j]) = (rays.weight[i], rays.slot[i]);
+                    (t[j], out_prim[j]) = (hits.t[i], prim[i]);
+                    j += 1;
+                }
+            }
+        });
 }
 
 #[cfg(test)]

@@ -7,8 +7,8 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::queue::compact::kept_rows;
-use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue, RowIndex, SampleSlot};
+use crate::queue::compact::{count_chunks, split_by_counts};
+use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue, SampleSlot};
 use crate::world::World;
 
 crate::column_set! {
@@ -49,37 +49,44 @@ pub fn reflection_ray(world: &World, hits: &ReflectHits<'_>, i: usize) -> RayIte
     }
 }
 
-/// Spawns the next depth's rays into `next` (overwritten); `rows` is scratch.
+/// Spawns the next depth's rays into `next` (overwritten), in slot order: a two-pass compaction
+/// over chunks of hits (count each chunk's reflective hits, then each chunk writes its rays at its
+/// place). `counts` is scratch.
 pub fn spawn_reflection_rays(
     world: &World,
     hits: ReflectHits<'_>,
-    rows: &mut Vec<RowIndex>,
+    counts: &mut Vec<usize>,
     next: NextRays<'_>,
 ) {
     let materials = world.materials();
-    let reflects = |i: usize| materials[hits.material[i] as usize].reflects();
-    kept_rows(hits.slot.len(), reflects, rows);
-    let n = rows.len();
-    for col in [&mut *next.origin, &mut *next.direction, &mut *next.weight] {
-        col.clear();
-        col.resize(n, Vec3::ZERO);
-    }
-    next.t_max.clear();
-    next.t_max.resize(n, f32::INFINITY);
-    next.slot.clear();
-    next.slot.resize(n, SampleSlot::default());
+    let material = hits.material;
+    let reflects = |i: usize| materials[material[i] as usize].reflects();
+    count_chunks(
+        material.len(),
+        MIN_CHUNK,
+        |r| r.filter(|&i| reflects(i)).count(),
+        counts,
+    );
     (
-        &mut *next.origin,
-        &mut *next.direction,
-        &mut *next.weight,
-        &mut *next.slot,
-        rows.as_slice(),
+        split_by_counts(next.origin, counts),
+        split_by_counts(next.direction, counts),
+        split_by_counts(next.t_max, counts),
+        split_by_counts(next.weight, counts),
+        split_by_counts(next.slot, counts),
     )
         .into_par_iter()
-        .with_min_len(MIN_CHUNK)
-        .for_each(|(o, d, w, s, &i)| {
-            let r = reflection_ray(world, &hits, i.get());
-            (*o, *d, *w, *s) = (r.origin, r.direction, r.weight, r.slot);
+        .enumerate()
+        .for_each(|(c, (origin, direction, t_max, weight, slot))| {
+            let first = c * MIN_CHUNK;
+            let mut j = 0;
+            for i in first..(first + MIN_CHUNK).min(material.len()) {
+                if reflects(i) {
+                    let r = reflection_ray(world, &hits, i);
+                    (origin[j], direction[j], t_max[j]) = (r.origin, r.direction, r.t_max);
+                    (weight[j], slot[j]) = (r.weight, r.slot);
+                    j += 1;
+                }
+            }
         });
 }
 

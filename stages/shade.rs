@@ -13,6 +13,9 @@
 //! memory is bounded however many lights there are. Each sample still receives its emitted
 //! radiance first and then its lights in index order, so the image does not depend on the passes.
 
+// Lane loops index several parallel `[_; LANES]` arrays by lane: an index is clearer than zips.
+#![allow(clippy::needless_range_loop)]
+
 use std::ops::Range;
 
 use glam::Vec3;
@@ -20,11 +23,13 @@ use rayon::prelude::*;
 
 use crate::film::SampleBuffer;
 use crate::frame::Light;
+use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
-use crate::queue::compact::kept_rows;
-use crate::queue::{HitQueue, MIN_CHUNK, PrimId, RowIndex, SampleSlot, ShadowQueue};
+use crate::queue::compact::split_by_counts;
+use crate::queue::{HitQueue, MIN_CHUNK, PrimId, SampleSlot, ShadowQueue};
 use crate::scene::{Material, Scene};
-use crate::world::{Surface, World};
+use crate::simd::{Kernel, Level, dispatch};
+use crate::world::{Surface, SurfaceOut, World};
 
 crate::column_set! {
     /// What `shade_hits` reads and writes in the hit queue.
@@ -105,7 +110,7 @@ impl ShadeSettings {
     }
 }
 
-/// Upper bound on a pass's rows: row indices of a pass are `u32` ([`RowIndex`]).
+/// Upper bound on a pass's rows: row indices of a pass are `u32` ([`RowIndex`](crate::queue::RowIndex)).
 pub const MAX_SHADOW_ROWS: usize = u32::MAX as usize;
 
 /// One shade → shadow pass of a depth: the shadow rays of hits `hits` (rows of the hit queue)
@@ -259,11 +264,13 @@ pub fn shadow_ray(origin: Vec3, light: &Light) -> (Vec3, f32) {
 pub struct ShadeScratch {
     /// `shadow_radiance` of every (hit, light) row of the pass, hit-major.
     radiance: Vec<Vec3>,
-    /// The rows with non-zero radiance, in order.
-    rows: Vec<RowIndex>,
+    /// Kept rows (non-zero radiance) of each chunk of hits.
+    counts: Vec<usize>,
 }
 
-/// Shades every hit: fills its surface columns and `emitted` (one row per hit).
+/// Shades every hit: fills its surface columns and `emitted` (one row per hit). Each chunk of
+/// rows goes through [`World::surface_batch`] (the SIMD surface kernel) and then the emitted
+/// radiance of its rows.
 pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
     let n = hits.prim.len();
     hits.point.resize(n, Vec3::ZERO);
@@ -271,50 +278,312 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
     hits.material.resize(n, 0);
     hits.spawn.resize(n, Vec3::ZERO);
     hits.shading.resize(n, Vec3::ZERO);
+    hits.emitted.resize(n, Vec3::ZERO);
+    let (prim, origin, direction, t, weight) =
+        (hits.prim, hits.origin, hits.direction, hits.t, hits.weight);
     (
-        (
-            &mut *hits.point,
-            &mut *hits.normal,
-            &mut *hits.material,
-            &mut *hits.spawn,
-            &mut *hits.shading,
-        ),
-        (hits.prim, hits.origin, hits.direction, hits.t),
+        hits.point.par_chunks_mut(MIN_CHUNK),
+        hits.normal.par_chunks_mut(MIN_CHUNK),
+        hits.material.par_chunks_mut(MIN_CHUNK),
+        hits.spawn.par_chunks_mut(MIN_CHUNK),
+        hits.shading.par_chunks_mut(MIN_CHUNK),
+        hits.emitted.par_chunks_mut(MIN_CHUNK),
     )
         .into_par_iter()
-        .with_min_len(MIN_CHUNK)
-        .for_each(|((p, nrm, m, sp, sh), (&prim, &o, &d, &t))| {
-            let s = world.surface(prim, o, d, t);
-            (*p, *nrm, *m, *sp, *sh) = (s.point, s.normal, s.material, s.spawn, s.shading);
-        });
-    let surface = (
-        &*hits.point,
-        &*hits.normal,
-        &*hits.material,
-        &*hits.spawn,
-        &*hits.shading,
-    );
-    ((hits.direction, hits.weight), surface)
-        .into_par_iter()
-        .with_min_len(MIN_CHUNK)
-        .map(
-            |((&d, &w), (&point, &normal, &material, &spawn, &shading))| {
+        .enumerate()
+        .for_each(|(c, (point, normal, material, spawn, shading, emitted))| {
+            let r = c * MIN_CHUNK..c * MIN_CHUNK + point.len();
+            world.surface_batch(
+                &prim[r.clone()],
+                &origin[r.clone()],
+                &direction[r.clone()],
+                &t[r.clone()],
+                SurfaceOut {
+                    point: &mut *point,
+                    normal: &mut *normal,
+                    material: &mut *material,
+                    spawn: &mut *spawn,
+                    shading: &mut *shading,
+                },
+            );
+            for (k, e) in emitted.iter_mut().enumerate() {
                 let s = Surface {
-                    point,
-                    normal,
-                    material,
-                    spawn,
-                    shading,
+                    point: point[k],
+                    normal: normal[k],
+                    material: material[k],
+                    spawn: spawn[k],
+                    shading: shading[k],
                 };
-                shade_hit(world, settings, (d, w), &s)
-            },
-        )
-        .collect_into_vec(hits.emitted);
+                let i = r.start + k;
+                *e = shade_hit(world, settings, (direction[i], weight[i]), &s);
+            }
+        });
+}
+
+/// Hits per lane group of the shadow-ray kernels.
+const LANES: usize = 8;
+
+/// 8 hits of the shaded queue in lanes: what `shadow_radiance` and `shadow_ray` read.
+struct HitLanes {
+    p: [[f32; LANES]; 3],
+    n: [[f32; LANES]; 3],
+    d: [[f32; LANES]; 3],
+    w: [[f32; LANES]; 3],
+    kd: [[f32; LANES]; 3],
+    ks: [[f32; LANES]; 3],
+    exponent: [f32; LANES],
+    alpha: [f32; LANES],
+    spec: [bool; LANES],
+    /// The shading normal differs from the geometric one (vertex normals): computed by the
+    /// scalar `shadow_radiance` instead.
+    smooth: [bool; LANES],
+}
+
+impl HitLanes {
+    /// Hits `rows` (at most [`LANES`]).
+    #[inline(always)]
+    fn load(
+        hits: &ShadedHits<'_>,
+        materials: &[Material],
+        specular: bool,
+        rows: Range<usize>,
+    ) -> Self {
+        let mut x = HitLanes {
+            p: [[0.0; LANES]; 3],
+            n: [[0.0; LANES]; 3],
+            d: [[0.0; LANES]; 3],
+            w: [[0.0; LANES]; 3],
+            kd: [[0.0; LANES]; 3],
+            ks: [[0.0; LANES]; 3],
+            exponent: [0.0; LANES],
+            alpha: [0.0; LANES],
+            spec: [false; LANES],
+            smooth: [false; LANES],
+        };
+        for (l, h) in rows.enumerate() {
+            let m = &materials[hits.material[h] as usize];
+            for k in 0..3 {
+                x.p[k][l] = hits.point[h][k];
+                x.n[k][l] = hits.normal[h][k];
+                x.d[k][l] = hits.direction[h][k];
+                x.w[k][l] = hits.weight[h][k];
+                x.kd[k][l] = m.kd[k];
+                x.ks[k][l] = m.ks[k];
+            }
+            (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
+            x.spec[l] = specular && m.has_specular();
+            x.smooth[l] = hits.shading[h] != hits.normal[h];
+        }
+        x
+    }
+
+    /// [`shadow_radiance`] of the 8 hits toward `light`, lane by lane in its operations' order
+    /// (the specular power through the same `powf`, one lane at a time).
+    #[inline(always)]
+    fn radiance(&self, light: &Light) -> [[f32; LANES]; 3] {
+        let lp = light.position;
+        let mut l_dir = [[0.0f32; LANES]; 3];
+        let mut n_dot_l = [0.0f32; LANES];
+        let mut n_dot_h = [0.0f32; LANES];
+        let mut valid = [false; LANES];
+        for l in 0..LANES {
+            let to = [
+                lp.x - self.p[0][l],
+                lp.y - self.p[1][l],
+                lp.z - self.p[2][l],
+            ];
+            let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
+            valid[l] = (dist > 0.0) & dist.is_finite();
+            let u = to.map(|c| c / dist);
+            let n = [self.n[0][l], self.n[1][l], self.n[2][l]];
+            n_dot_l[l] = n[0] * u[0] + n[1] * u[1] + n[2] * u[2];
+            // The half vector with v = −d.
+            let h = [0, 1, 2].map(|k| u[k] + -self.d[k][l]);
+            let len = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
+            let hn = h.map(|c| c / len);
+            let ndh = (n[0] * hn[0] + n[1] * hn[1] + n[2] * hn[2]).max(0.0);
+            n_dot_h[l] = if len > 0.0 { ndh } else { 0.0 };
+            for k in 0..3 {
+                l_dir[k][l] = u[k];
+            }
+        }
+        let mut power = [0.0f32; LANES];
+        for l in 0..LANES {
+            if self.spec[l] && valid[l] {
+                power[l] = n_dot_h[l].powf(self.exponent[l]);
+            }
+        }
+        let mut out = [[0.0f32; LANES]; 3];
+        for l in 0..LANES {
+            let diffuse = n_dot_l[l].max(0.0);
+            let mut c = [0.0f32; 3];
+            for k in 0..3 {
+                let kd = self.kd[k][l] * diffuse;
+                let with_spec = kd + self.ks[k][l] * power[l];
+                c[k] = if self.spec[l] { with_spec } else { kd };
+                c[k] *= light.intensity[k];
+            }
+            let lit =
+                valid[l] & (n_dot_l[l] > 0.0) & ((c[0] != 0.0) | (c[1] != 0.0) | (c[2] != 0.0));
+            let scale = 1.0 - self.alpha[l];
+            for k in 0..3 {
+                let r = self.w[k][l] * scale * c[k];
+                out[k][l] = if lit { r } else { 0.0 };
+            }
+        }
+        out
+    }
+}
+
+/// [`shadow_ray`] from 8 spawn points toward `light`, in lanes: directions and `t_max`.
+#[inline(always)]
+fn shadow_rays8(spawn: &[[f32; LANES]; 3], light: &Light) -> ([[f32; LANES]; 3], [f32; LANES]) {
+    let lp = light.position;
+    let le = gamma(1) * lp.abs();
+    let mut dir = [[0.0f32; LANES]; 3];
+    let mut t_max = [0.0f32; LANES];
+    for l in 0..LANES {
+        let to = [0, 1, 2].map(|k| lp[k] - spawn[k][l]);
+        let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
+        let u = to.map(|c| c / dist);
+        let along = u[0].abs() * le.x + u[1].abs() * le.y + u[2].abs() * le.z;
+        t_max[l] = (dist * (1.0 - gamma(3)) - along).max(0.0);
+        for k in 0..3 {
+            dir[k][l] = u[k];
+        }
+    }
+    (dir, t_max)
+}
+
+/// The first pass of [`spawn_shadow_rays`] over one chunk of hits: every (hit, light) row's
+/// radiance (hit-major) into `out`; returns how many are non-zero.
+struct RadianceKernel<'a, 'h> {
+    hits: &'a ShadedHits<'h>,
+    materials: &'a [Material],
+    specular: bool,
+    lights: &'a [Light],
+    hits_range: Range<usize>,
+    out: &'a mut [Vec3],
+}
+
+impl Kernel for RadianceKernel<'_, '_> {
+    type Output = usize;
+    #[inline(always)]
+    fn run(self, _level: Level) -> usize {
+        let per_hit = self.lights.len();
+        let mut kept = 0;
+        let Range { start, end } = self.hits_range;
+        for g in (start..end).step_by(LANES) {
+            let rows = g..(g + LANES).min(end);
+            let x = HitLanes::load(self.hits, self.materials, self.specular, rows.clone());
+            for (li, light) in self.lights.iter().enumerate() {
+                let r = x.radiance(light);
+                for (l, h) in rows.clone().enumerate() {
+                    let mut v = Vec3::new(r[0][l], r[1][l], r[2][l]);
+                    if x.smooth[l] {
+                        let m = &self.materials[self.hits.material[h] as usize];
+                        let (d, w) = (self.hits.direction[h], self.hits.weight[h]);
+                        let (p, n) = (self.hits.point[h], self.hits.normal[h]);
+                        let surface = (p, n, self.hits.shading[h]);
+                        v = shadow_radiance(light, m, self.specular, (d, w), surface);
+                    }
+                    kept += usize::from(v != Vec3::ZERO);
+                    self.out[(h - start) * per_hit + li] = v;
+                }
+            }
+        }
+        kept
+    }
+}
+
+/// The second pass of [`spawn_shadow_rays`] over one chunk of hits: the rays of its non-zero rows,
+/// in order, into its part of the shadow queue.
+struct ShadowRayKernel<'a, 'h> {
+    hits: &'a ShadedHits<'h>,
+    lights: &'a [Light],
+    hits_range: Range<usize>,
+    radiance: &'a [Vec3],
+    origin: &'a mut [Vec3],
+    direction: &'a mut [Vec3],
+    t_max: &'a mut [f32],
+    out_radiance: &'a mut [Vec3],
+    slot: &'a mut [SampleSlot],
+}
+
+impl Kernel for ShadowRayKernel<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self, _level: Level) {
+        let per_hit = self.lights.len();
+        let Range { start, end } = self.hits_range;
+        let mut j = 0;
+        if per_hit != 1 {
+            // Several lights per hit: row by row in (hit, light) order.
+            for h in start..end {
+                let spawn = self.hits.spawn[h];
+                for (li, light) in self.lights.iter().enumerate() {
+                    let value = self.radiance[(h - start) * per_hit + li];
+                    if value != Vec3::ZERO {
+                        let (dir, t) = shadow_ray(spawn, light);
+                        (self.origin[j], self.direction[j], self.t_max[j]) = (spawn, dir, t);
+                        (self.out_radiance[j], self.slot[j]) = (value, self.hits.slot[h]);
+                        j += 1;
+                    }
+                }
+            }
+            return;
+        }
+        let light = &self.lights[0];
+        for g in (start..end).step_by(LANES) {
+            let rows = g..(g + LANES).min(end);
+            let mut spawn = [[0.0f32; LANES]; 3];
+            for (l, h) in rows.clone().enumerate() {
+                for (k, lane) in spawn.iter_mut().enumerate() {
+                    lane[l] = self.hits.spawn[h][k];
+                }
+            }
+            let (dir, t) = shadow_rays8(&spawn, light);
+            for (l, h) in rows.enumerate() {
+                let value = self.radiance[h - start];
+                if value != Vec3::ZERO {
+                    self.origin[j] = self.hits.spawn[h];
+                    self.direction[j] = Vec3::new(dir[0][l], dir[1][l], dir[2][l]);
+                    (self.t_max[j], self.out_radiance[j]) = (t[l], value);
+                    self.slot[j] = self.hits.slot[h];
+                    j += 1;
+                }
+            }
+        }
+    }
 }
 
 /// Spawns the shadow rays of `pass` (`shadows` is overwritten): for every hit of the pass and
-/// every light of the pass that can light it, in (hit, light) order — slot order.
+/// every light of the pass that can light it, in (hit, light) order — slot order. Two passes over
+/// chunks of hits, each a SIMD kernel ([`crate::simd::dispatch`]): the first evaluates every
+/// (hit, light) row's radiance in lanes of 8 hits and counts the non-zero ones, the second writes
+/// each chunk's rays at its place in the queue.
 pub fn spawn_shadow_rays(
+    world: &World,
+    settings: &ShadeSettings,
+    pass: &ShadowPass,
+    hits: ShadedHits<'_>,
+    scratch: &mut ShadeScratch,
+    shadows: ShadowRays<'_>,
+) {
+    spawn_shadow_rays_at(
+        Level::current(),
+        world,
+        settings,
+        pass,
+        hits,
+        scratch,
+        shadows,
+    );
+}
+
+/// [`spawn_shadow_rays`] with its kernels compiled for `level`.
+fn spawn_shadow_rays_at(
+    level: Level,
     world: &World,
     settings: &ShadeSettings,
     pass: &ShadowPass,
@@ -327,44 +596,54 @@ pub fn spawn_shadow_rays(
     let rows = pass.rows();
     debug_assert!(rows <= MAX_SHADOW_ROWS);
     let r = pass.hits.clone();
-    scratch.radiance.clear();
-    scratch.radiance.resize(rows, Vec3::ZERO);
+    let chunk = (MIN_CHUNK / per_hit).max(1);
+    scratch.radiance.resize(rows, Vec3::ZERO); // every row is overwritten
+    let materials = world.materials();
+    let hits = &hits;
+    scratch
+        .radiance
+        .par_chunks_mut(chunk * per_hit)
+        .enumerate()
+        .map(|(c, out)| {
+            let first = r.start + c * chunk;
+            let kernel = RadianceKernel {
+                hits,
+                materials,
+                specular: settings.specular,
+                lights,
+                hits_range: first..first + out.len() / per_hit,
+                out,
+            };
+            dispatch(level, kernel)
+        })
+        .collect_into_vec(&mut scratch.counts);
+    let counts = &scratch.counts;
+    let radiance = &scratch.radiance;
     (
-        (&hits.direction[r.clone()], &hits.weight[r.clone()]),
-        (
-            &hits.point[r.clone()],
-            &hits.normal[r.clone()],
-            &hits.shading[r.clone()],
-        ),
-        &hits.material[r.clone()],
-        scratch.radiance.par_chunks_mut(per_hit),
+        split_by_counts(shadows.origin, counts),
+        split_by_counts(shadows.direction, counts),
+        split_by_counts(shadows.t_max, counts),
+        split_by_counts(shadows.radiance, counts),
+        split_by_counts(shadows.slot, counts),
     )
         .into_par_iter()
-        .with_min_len((MIN_CHUNK / per_hit).max(1))
-        .for_each(|((&d, &w), (&p, &n, &sh), &material, out)| {
-            let m = &world.materials()[material as usize];
-            for (o, light) in out.iter_mut().zip(lights) {
-                *o = shadow_radiance(light, m, settings.specular, (d, w), (p, n, sh));
-            }
+        .enumerate()
+        .for_each(|(c, (origin, direction, t_max, out_radiance, slot))| {
+            let first = r.start + c * chunk;
+            let rows = &radiance[c * chunk * per_hit..((c + 1) * chunk * per_hit).min(rows)];
+            let kernel = ShadowRayKernel {
+                hits,
+                lights,
+                hits_range: first..first + rows.len() / per_hit,
+                radiance: rows,
+                origin,
+                direction,
+                t_max,
+                out_radiance,
+                slot,
+            };
+            dispatch(level, kernel);
         });
-    let radiance = &scratch.radiance;
-    kept_rows(rows, |i| radiance[i] != Vec3::ZERO, &mut scratch.rows);
-    let kept = &scratch.rows;
-    let hit = |k: RowIndex| r.start + k.get() / per_hit;
-    let light = |k: RowIndex| &lights[k.get() % per_hit];
-    let each = || kept.par_iter().with_min_len(MIN_CHUNK);
-    each()
-        .map(|&k| hits.spawn[hit(k)])
-        .collect_into_vec(shadows.origin);
-    each()
-        .map(|&k| shadow_ray(hits.spawn[hit(k)], light(k)))
-        .unzip_into_vecs(shadows.direction, shadows.t_max);
-    each()
-        .map(|&k| radiance[k.get()])
-        .collect_into_vec(shadows.radiance);
-    each()
-        .map(|&k| hits.slot[hit(k)])
-        .collect_into_vec(shadows.slot);
 }
 
 /// The hit/miss mask variant of shade: every hit emits its weight (white for primary rays).
@@ -611,5 +890,105 @@ mod tests {
         assert_eq!(joined.direction, whole.direction);
         assert_eq!(joined.t_max, whole.t_max);
         assert_eq!(joined.radiance, whole.radiance);
+    }
+
+    /// The shadow-ray kernels at every SIMD level against the scalar `shadow_radiance` and
+    /// `shadow_ray`, row for row, with one light and with three (and shadow passes split).
+    #[test]
+    fn shadow_ray_kernels_match_the_scalar_functions_bit_for_bit() {
+        use crate::queue::RayQueue;
+        use crate::sampling::Rng;
+        use crate::stages::intersect::{
+            ClosestOut, ClosestRays, CompactHits, CompactOut, CompactRays, compact_hits,
+            intersect_closest,
+        };
+        for lights in [1, 3] {
+            let mut scene = spheres();
+            let first = scene.lights[0].clone();
+            for k in 1..lights {
+                let mut l = first.clone();
+                l.position += glam::DVec3::new(3.0 * k as f64, -1.0, 2.0);
+                scene.lights.push(l);
+            }
+            let world = World::load(&scene).unwrap();
+            let settings = ShadeSettings::for_scene(&scene);
+            let mut rng = Rng(3);
+            let mut rays = RayQueue::default();
+            for s in 0..5000u32 {
+                let d = Vec3::new(rng.range(-0.8, 0.8), rng.range(-0.8, 0.3), -1.0);
+                rays.push(crate::queue::RayItem {
+                    origin: Vec3::ZERO,
+                    direction: d.normalize(),
+                    t_max: f32::INFINITY,
+                    weight: Vec3::splat(rng.range(0.1, 1.0)),
+                    slot: SampleSlot(s),
+                });
+            }
+            let mut closest = crate::queue::HitColumns::default();
+            intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut closest));
+            let mut hits = HitQueue::default();
+            compact_hits(
+                CompactRays::of(&rays),
+                CompactHits::of(&closest),
+                &mut vec![],
+                CompactOut::of(&mut hits),
+            );
+            shade_hits(&world, &settings, ShadeHits::of(&mut hits));
+            let mut expected = vec![];
+            for h in 0..hits.len() {
+                let m = &world.materials()[hits.material[h] as usize];
+                for light in world.lights() {
+                    let v = shadow_radiance(
+                        light,
+                        m,
+                        settings.specular,
+                        (hits.direction[h], hits.weight[h]),
+                        (hits.point[h], hits.normal[h], hits.shading[h]),
+                    );
+                    if v != Vec3::ZERO {
+                        let (d, t) = shadow_ray(hits.spawn[h], light);
+                        expected.push((hits.spawn[h], d, t, v, hits.slot[h]));
+                    }
+                }
+            }
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            for level in Level::supported() {
+                for budget in [usize::MAX, 1000] {
+                    let mut got = vec![];
+                    let passes = ShadowPass::plan(hits.len(), lights, budget);
+                    let mut all: Vec<_> = passes.collect();
+                    // Passes run light block by light block; order rows as (hit, light).
+                    all.sort_by_key(|p| p.lights.start);
+                    for pass in all {
+                        let mut q = ShadowQueue::default();
+                        spawn_shadow_rays_at(
+                            level,
+                            &world,
+                            &settings,
+                            &pass,
+                            ShadedHits::of(&hits),
+                            &mut ShadeScratch::default(),
+                            ShadowRays::of(&mut q),
+                        );
+                        for i in 0..q.len() {
+                            let row = (q.origin[i], q.direction[i], q.t_max[i], q.radiance[i]);
+                            got.push((row, q.slot[i], pass.lights.start));
+                        }
+                    }
+                    got.sort_by_key(|&(_, slot, light)| (slot, light));
+                    assert_eq!(got.len(), expected.len(), "{level:?}, {lights} lights");
+                    for (g, e) in got.iter().zip(&expected) {
+                        let ((o, d, t, v), slot, _) = *g;
+                        assert_eq!(slot, e.4);
+                        assert_eq!((bits(o), bits(d)), (bits(e.0), bits(e.1)), "{level:?}");
+                        assert_eq!(
+                            (t.to_bits(), bits(v)),
+                            (e.2.to_bits(), bits(e.3)),
+                            "{level:?}"
+                        );
+                    }
+                }
+            }
+        }
     }
 }

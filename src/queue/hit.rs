@@ -11,6 +11,13 @@ use super::SampleSlot;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Pod, Zeroable)]
 pub struct PrimId(pub u32);
 
+/// A miss.
+impl Default for PrimId {
+    fn default() -> Self {
+        PrimId::NONE
+    }
+}
+
 impl PrimId {
     /// No hit.
     pub const NONE: PrimId = PrimId(u32::MAX);

@@ -20,12 +20,14 @@ pub mod observer;
 pub mod stage;
 
 use std::fmt;
+use std::sync::Mutex;
 use std::time::Instant;
 
 use glam::Vec3;
+use rayon::prelude::*;
 
 use crate::film::{Film, PixelSink, SampleBuffer, resolve_wave};
-use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, RowIndex, ShadowQueue};
+use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, ShadowQueue};
 use crate::region::Region;
 use crate::scene::{RenderMode, Scene};
 use crate::stages::generate::{CameraRays, generate_camera_rays};
@@ -44,10 +46,11 @@ use crate::world::World;
 pub use observer::{Observer, Progress, Queues, StageRun};
 pub use stage::Stage;
 
-/// Default cap on samples per wave: bounds memory whatever the samples per pixel. 2^16 samples
-/// keep a wave's queues at a few MB (in L3): scene A at 64 spp peaks at 26 MB instead of 272 MB
-/// with 2^20, at the same speed (1.96 vs 2.00 s, one run each, 2 threads).
-pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 16;
+/// Default cap on samples per wave: bounds memory whatever the samples per pixel. 2^12 samples
+/// keep a wave's queues at about 2 MB, near the core's L2 (512 KiB on the EPYC used for tuning),
+/// and a render traces one wave per thread at once; CPU time is flat from 2^10 to 2^13 and 10%
+/// above it at 2^16 (scene A, 16 spp, 1 thread), whose first-touch faults also cost 1 spp ~25%.
+pub const DEFAULT_WAVE_SAMPLES: usize = 1 << 12;
 
 /// Largest accepted cap on samples per wave: a wave's sample slots are `u32`, and its queues must
 /// fit in memory (2^28 samples already need tens of GB).
@@ -280,7 +283,7 @@ pub struct WaveQueues {
     pub samples: SampleBuffer,
     /// The wave's resolved pixels (linear radiance), handed to the sink.
     pub pixels: Vec<Vec3>,
-    rows: Vec<RowIndex>,
+    counts: Vec<usize>,
     shade: ShadeScratch,
 }
 
@@ -327,11 +330,15 @@ pub fn render_observed(
 }
 
 /// Renders `scene`, showing every stage call and wave to `observer` and handing each wave's
-/// resolved pixels to `sink` as soon as the wave is done. This is the renderer: for each wave, for
-/// each depth of the [`Pipeline`], each of that depth's stages in order — shade and shadow once
-/// per [`ShadowPass`] of at most `options.shadow_rows` shadow rays. Stops early, after a wave, when
-/// the sink no longer [accepts](PixelSink::accepts) pixels. The sink receives the pixels of
-/// [`RenderOptions::region_of`] the scene, row-major within the region.
+/// resolved pixels to `sink`, in wave order. This is the renderer: for each wave, for each depth
+/// of the [`Pipeline`], each of that depth's stages in order (`trace_wave`) — shade and shadow
+/// once per [`ShadowPass`] of at most `options.shadow_rows` shadow rays. When the observer
+/// [watches stages](Observer::watches_stages) (or on one thread) waves are traced one at a time,
+/// each kernel split over the threads; otherwise each thread traces whole waves, a batch of
+/// `WAVES_PER_THREAD` waves per thread at a time, and the batch's waves go to the sink in
+/// order. The image is the same either way (every kernel is deterministic). Stops early, after a
+/// wave (or a batch), when the sink no longer [accepts](PixelSink::accepts) pixels. The sink
+/// receives the pixels of [`RenderOptions::region_of`] the scene, row-major within the region.
 pub fn render_into(
     scene: &Scene,
     world: &World,
@@ -351,61 +358,128 @@ pub fn render_into(
     let pipeline = Pipeline::for_scene(scene);
     let region = options.region_of(scene);
     let total = region.pixels();
-    let mut ws = WaveQueues::default();
     let mut done = 0;
     let traced_lights = pipeline.traced_lights(world);
-
-    for wave in waves(scene, options) {
-        ws.samples.reset(wave.len());
-        'depths: for plan in &pipeline.depths {
-            let mut call = |stage, pass: &ShadowPass, ws: &mut WaveQueues| {
-                observer.before(stage, plan.depth, &ws.queues(&wave));
-                let start = Instant::now();
-                let (rays_in, rays_out) =
-                    run_stage(stage, scene, world, &pipeline, &wave, pass, ws);
-                let run = StageRun {
-                    stage,
-                    depth: plan.depth,
-                    first_pass: pass.is_first(),
-                    rays_in,
-                    rays_out,
-                    elapsed: start.elapsed(),
-                };
-                observer.after(&run, &ws.queues(&wave));
-            };
-            for &stage in &plan.stages {
-                match stage {
-                    // Every ray of the previous depth missed or stopped.
-                    Stage::Intersect if ws.rays.is_empty() => break 'depths,
-                    // Direct light, a bounded pass at a time: shade spawns the shadow rays of a
-                    // block of hits × lights and shadow traces them before the next block.
-                    Stage::Shade => {
-                        let shadow = plan.stages.contains(&Stage::Shadow);
-                        let passes =
-                            ShadowPass::plan(ws.hits.len(), traced_lights, options.shadow_rows);
-                        for pass in passes {
-                            call(Stage::Shade, &pass, &mut ws);
-                            if shadow {
-                                call(Stage::Shadow, &pass, &mut ws);
-                            }
-                        }
-                    }
-                    Stage::Shadow => {} // run with each shade pass, above
-                    stage => call(stage, &ShadowPass::default(), &mut ws),
-                }
+    let threads = rayon::current_num_threads();
+    let trace = |wave: &Wave, ws: &mut WaveQueues, observer: &mut dyn Observer| {
+        trace_wave(
+            (scene, world, &pipeline),
+            options,
+            traced_lights,
+            wave,
+            ws,
+            observer,
+        );
+    };
+    if observer.watches_stages() || threads == 1 {
+        // One wave at a time, each stage's kernels over all threads; observers see every call.
+        let mut ws = WaveQueues::default();
+        for wave in waves(scene, options) {
+            trace(&wave, &mut ws, &mut observer);
+            sink.put(PixelIndex(wave.first), &ws.pixels);
+            done += u64::from(wave.pixels);
+            observer.wave_done(done, total);
+            if !sink.accepts() {
+                break;
             }
-            // The next depth traces the reflections this one spawned.
-            std::mem::swap(&mut ws.rays, &mut ws.next);
-            ws.next.clear();
         }
-        resolve_wave(&ws.samples, &wave, &mut ws.pixels);
-        sink.put(PixelIndex(wave.first), &ws.pixels);
-        done += u64::from(wave.pixels);
-        observer.wave_done(done, total);
+        return;
+    }
+    // Several waves at once, each traced whole by one thread on a set of queues taken from a
+    // pool (kept warm in its cache) and given back; threads take waves as they finish, and the
+    // waves of a batch reach the sink in order.
+    let pool: Mutex<Vec<WaveQueues>> = Mutex::new(vec![]);
+    let take = || pool.lock().map(|mut p| p.pop()).unwrap_or(None);
+    let give = |ws: WaveQueues| {
+        if let Ok(mut p) = pool.lock() {
+            p.push(ws);
+        }
+    };
+    let mut pixels: Vec<Vec<Vec3>> = vec![];
+    let mut all = waves(scene, options);
+    loop {
+        let batch: Vec<Wave> = all.by_ref().take(WAVES_PER_THREAD * threads).collect();
+        if batch.is_empty() {
+            break;
+        }
+        pixels.resize_with(batch.len(), Vec::new);
+        pixels[..batch.len()]
+            .par_iter_mut()
+            .zip(&batch)
+            .with_max_len(1)
+            .for_each(|(px, wave)| {
+                let mut ws = take().unwrap_or_default();
+                trace(wave, &mut ws, &mut ());
+                std::mem::swap(px, &mut ws.pixels);
+                give(ws);
+            });
+        for (px, wave) in pixels.iter().zip(&batch) {
+            sink.put(PixelIndex(wave.first), px);
+            done += u64::from(wave.pixels);
+            observer.wave_done(done, total);
+        }
         if !sink.accepts() {
             break;
         }
     }
+}
+
+/// Waves per thread in a batch of the wave-parallel path: threads take the batch's waves as they
+/// finish (a slow or descheduled thread holds up only the end of a batch).
+const WAVES_PER_THREAD: usize = 8;
+
+/// Traces one wave: each depth of the pipeline, each of its stages in order (shade and shadow
+/// once per [`ShadowPass`]), then resolves the wave's samples into `ws.pixels`.
+fn trace_wave(
+    (scene, world, pipeline): (&Scene, &World, &Pipeline),
+    options: &RenderOptions,
+    traced_lights: usize,
+    wave: &Wave,
+    ws: &mut WaveQueues,
+    observer: &mut dyn Observer,
+) {
+    ws.samples.reset(wave.len());
+    'depths: for plan in &pipeline.depths {
+        let mut call = |stage, pass: &ShadowPass, ws: &mut WaveQueues| {
+            observer.before(stage, plan.depth, &ws.queues(wave));
+            let start = Instant::now();
+            let (rays_in, rays_out) = run_stage(stage, scene, world, pipeline, wave, pass, ws);
+            let run = StageRun {
+                stage,
+                depth: plan.depth,
+                first_pass: pass.is_first(),
+                rays_in,
+                rays_out,
+                elapsed: start.elapsed(),
+            };
+            observer.after(&run, &ws.queues(wave));
+        };
+        for &stage in &plan.stages {
+            match stage {
+                // Every ray of the previous depth missed or stopped.
+                Stage::Intersect if ws.rays.is_empty() => break 'depths,
+                // Direct light, a bounded pass at a time: shade spawns the shadow rays of a
+                // block of hits × lights and shadow traces them before the next block.
+                Stage::Shade => {
+                    let shadow = plan.stages.contains(&Stage::Shadow);
+                    let passes =
+                        ShadowPass::plan(ws.hits.len(), traced_lights, options.shadow_rows);
+                    for pass in passes {
+                        call(Stage::Shade, &pass, ws);
+                        if shadow {
+                            call(Stage::Shadow, &pass, ws);
+                        }
+                    }
+                }
+                Stage::Shadow => {} // run with each shade pass, above
+                stage => call(stage, &ShadowPass::default(), ws),
+            }
+        }
+        // The next depth traces the reflections this one spawned.
+        std::mem::swap(&mut ws.rays, &mut ws.next);
+        ws.next.clear();
+    }
+    resolve_wave(&ws.samples, wave, &mut ws.pixels);
 }
 
 /// Runs one stage's kernels on a wave's queues; returns (rays in, rays out). The one dispatch
@@ -442,7 +516,7 @@ pub fn run_stage(
             compact_hits(
                 CompactRays::of(&ws.rays),
                 CompactHits::of(&ws.closest),
-                &mut ws.rows,
+                &mut ws.counts,
                 CompactOut::of(&mut ws.hits),
             );
             (ws.rays.len(), ws.hits.len())
@@ -483,7 +557,7 @@ pub fn run_stage(
             spawn_reflection_rays(
                 world,
                 ReflectHits::of(&ws.hits),
-                &mut ws.rows,
+                &mut ws.counts,
                 NextRays::of(&mut ws.next),
             );
             (ws.hits.len(), ws.next.len())

@@ -54,10 +54,21 @@ pub trait Observer {
     fn after(&mut self, _run: &StageRun, _queues: &Queues<'_>) {}
     /// Called after each wave is resolved into the film, with pixels done and total.
     fn wave_done(&mut self, _done: u64, _total: u64) {}
+    /// True when the observer watches stage calls ([`Observer::before`], [`Observer::after`]):
+    /// the schedule then traces one wave at a time, each stage's kernels split over the threads.
+    /// False (an observer of waves only) lets it trace one wave per thread at once, every
+    /// wave's stages in the same order.
+    fn watches_stages(&self) -> bool {
+        true
+    }
 }
 
 /// Observes nothing.
-impl Observer for () {}
+impl Observer for () {
+    fn watches_stages(&self) -> bool {
+        false
+    }
+}
 
 /// Both observers, in order.
 impl<A: Observer, B: Observer> Observer for (A, B) {
@@ -73,6 +84,9 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
         self.0.wave_done(done, total);
         self.1.wave_done(done, total);
     }
+    fn watches_stages(&self) -> bool {
+        self.0.watches_stages() || self.1.watches_stages()
+    }
 }
 
 impl<O: Observer + ?Sized> Observer for &mut O {
@@ -85,6 +99,9 @@ impl<O: Observer + ?Sized> Observer for &mut O {
     fn wave_done(&mut self, done: u64, total: u64) {
         (**self).wave_done(done, total);
     }
+    fn watches_stages(&self) -> bool {
+        (**self).watches_stages()
+    }
 }
 
 /// Calls a closure with (pixels done, pixels total) after each wave: a progress report.
@@ -94,5 +111,8 @@ pub struct Progress<F>(pub F);
 impl<F: FnMut(u64, u64)> Observer for Progress<F> {
     fn wave_done(&mut self, done: u64, total: u64) {
         (self.0)(done, total);
+    }
+    fn watches_stages(&self) -> bool {
+        false
     }
 }

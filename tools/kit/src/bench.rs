@@ -62,14 +62,22 @@ pub struct Snapshot {
     pub depths: Vec<DepthSnapshot>,
 }
 
-/// The observer that copies each stage's input queues out of the schedule.
+/// The observer that copies each stage's input queues out of the schedule: those of the first
+/// wave only (a row of the image can hold several waves).
 #[derive(Default)]
 struct Capture {
     depths: Vec<DepthSnapshot>,
+    waves: u32,
 }
 
 impl Observer for Capture {
     fn before(&mut self, stage: Stage, depth: u32, q: &Queues<'_>) {
+        if stage == Stage::Generate {
+            self.waves += 1;
+        }
+        if self.waves > 1 {
+            return;
+        }
         if stage == Stage::Intersect {
             self.depths.push(DepthSnapshot {
                 depth,
@@ -83,6 +91,9 @@ impl Observer for Capture {
     }
 
     fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
+        if self.waves > 1 {
+            return;
+        }
         let Some(d) = self.depths.last_mut() else {
             return;
         };
@@ -679,12 +690,14 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
             .push(Record::new(&scene.name, stage, depth, threads, rays, s));
     }
 
-    let mut traffic = TrafficMeter::default();
+    // The frame as `render` traces it: no stage observer, so one wave per thread at once.
     let frame = median_of(repeat, || {
-        traffic = TrafficMeter::default();
-        render_observed(scene, &world, &RenderOptions::default(), &mut traffic);
+        render_observed(scene, &world, &RenderOptions::default(), ());
     });
     if world.triangles().is_none() {
+        // Queue traffic counted on one more, untimed, render (the meter watches every stage).
+        let mut traffic = TrafficMeter::default();
+        render_observed(scene, &world, &RenderOptions::default(), &mut traffic);
         let samples =
             scene.image.width as f64 * scene.image.height as f64 * scene.image.samples as f64;
         let bytes = traffic.bytes as f64 / samples;

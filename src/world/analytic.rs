@@ -1,0 +1,723 @@
+//! The analytic primitives (spheres, planes) as batch kernels over rays: 8 rays at a time in
+//! lanes, compiled per SIMD [`Level`] and chosen at run time ([`crate::simd::dispatch`]).
+//!
+//! Each lane performs exactly the IEEE operations of the scalar tests, in the same order —
+//! [`sphere::intersect_stable`] in f64 lanes on the f32 inputs, [`plane::intersect`] in f32 lanes
+//! — with branches turned into selects, so every ray gets the bits [`World::intersect_closest`]
+//! and [`World::intersect_occluded`] give it (tests below, at every supported level).
+//!
+//! [`sphere::intersect_stable`]: crate::geometry::sphere::intersect_stable
+//! [`plane::intersect`]: crate::geometry::plane::intersect
+//! [`World::intersect_closest`]: super::World::intersect_closest
+//! [`World::intersect_occluded`]: super::World::intersect_occluded
+
+// Lane loops index several parallel `[_; LANES]` arrays by lane: an index is clearer than zips.
+#![allow(clippy::needless_range_loop)]
+
+use glam::Vec3;
+
+use super::World;
+use crate::frame::{Plane, Sphere};
+use crate::geometry::offset::gamma;
+use crate::queue::PrimId;
+use crate::scene::OffsetMethod;
+use crate::simd::{Kernel, Level, dispatch};
+
+/// Rays per lane group.
+pub(crate) const LANES: usize = 8;
+
+/// A group of up to [`LANES`] rays, deinterleaved (unused lanes hold a ray that misses nothing
+/// harmful: their results are never written).
+#[derive(Clone, Copy)]
+struct Rays8 {
+    o: [[f32; LANES]; 3],
+    d: [[f32; LANES]; 3],
+    t_max: [f32; LANES],
+}
+
+impl Rays8 {
+    #[inline(always)]
+    fn load(origins: &[Vec3], dirs: &[Vec3], t_max: &[f32]) -> Rays8 {
+        let mut r = Rays8 {
+            o: [[0.0; LANES]; 3],
+            d: [[0.0; LANES]; 3],
+            t_max: [0.0; LANES],
+        };
+        for (l, ((o, d), t)) in origins.iter().zip(dirs).zip(t_max).enumerate() {
+            for k in 0..3 {
+                r.o[k][l] = o[k];
+                r.d[k][l] = d[k];
+            }
+            r.t_max[l] = *t;
+        }
+        r
+    }
+}
+
+/// The stable ray/sphere test of [`crate::geometry::sphere::intersect_f64`] (then rounded and
+/// re-checked as `intersect_stable` does) on 8 lanes against `best` (each lane's `t_max`):
+/// returns the lanes' `t` and whether each hit, or `None` when every lane's discriminant is
+/// negative or NaN (every lane misses: the roots' square root and divisions are skipped).
+#[inline(always)]
+fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], [bool; LANES])> {
+    let c = [s.center.x as f64, s.center.y as f64, s.center.z as f64];
+    let rr = s.radius as f64 * s.radius as f64;
+    let mut a = [0.0f64; LANES];
+    let mut b = [0.0f64; LANES];
+    let mut disc = [0.0f64; LANES];
+    let mut cc = [0.0f64; LANES];
+    for l in 0..LANES {
+        let (ox, oy, oz) = (r.o[0][l] as f64, r.o[1][l] as f64, r.o[2][l] as f64);
+        let (dx, dy, dz) = (r.d[0][l] as f64, r.d[1][l] as f64, r.d[2][l] as f64);
+        let (fx, fy, fz) = (ox - c[0], oy - c[1], oz - c[2]);
+        a[l] = dx * dx + dy * dy + dz * dz;
+        b[l] = fx * dx + fy * dy + fz * dz;
+        let k = b[l] / a[l];
+        let (lx, ly, lz) = (fx - k * dx, fy - k * dy, fz - k * dz);
+        disc[l] = a[l] * (rr - (lx * lx + ly * ly + lz * lz));
+        cc[l] = (fx * fx + fy * fy + fz * fz) - rr;
+    }
+    // `disc >= 0` is false for NaN, as the scalar test's early return.
+    let mut any = false;
+    for d in disc {
+        any |= d >= 0.0;
+    }
+    if !any {
+        return None;
+    }
+    let mut t_out = [0.0f32; LANES];
+    let mut hit = [false; LANES];
+    for l in 0..LANES {
+        let q = -b[l] - disc[l].sqrt().copysign(b[l]);
+        let (t0, t1) = (cc[l] / q, q / a[l]);
+        let le = t0 <= t1;
+        let near = if le { t0 } else { t1 };
+        let far = if le { t1 } else { t0 };
+        let tm = best[l] as f64;
+        let near_ok = (near > 0.0) & (near < tm);
+        let far_ok = (far > 0.0) & (far < tm);
+        let t64 = if near_ok { near } else { far };
+        let t = t64 as f32;
+        hit[l] = (disc[l] >= 0.0) & (near_ok | far_ok) & (t > 0.0) & (t < best[l]);
+        t_out[l] = t;
+    }
+    Some((t_out, hit))
+}
+
+/// [`crate::geometry::plane::intersect`] on 8 lanes against `best`.
+#[inline(always)]
+fn plane8(r: &Rays8, p: &Plane, best: &[f32; LANES]) -> ([f32; LANES], [bool; LANES]) {
+    let (n, q) = (p.normal, p.point);
+    let mut t_out = [0.0f32; LANES];
+    let mut hit = [false; LANES];
+    for l in 0..LANES {
+        let denom = r.d[0][l] * n.x + r.d[1][l] * n.y + r.d[2][l] * n.z;
+        let num = (q.x - r.o[0][l]) * n.x + (q.y - r.o[1][l]) * n.y + (q.z - r.o[2][l]) * n.z;
+        let t = num / denom;
+        t_out[l] = t;
+        hit[l] = (t > 0.0) & (t < best[l]);
+    }
+    (t_out, hit)
+}
+
+/// Closest analytic hit of every ray: `out_t`/`out_prim` as [`super::World::intersect_closest`]
+/// gives them for a world of these spheres and planes only.
+pub(crate) struct Closest<'a> {
+    pub spheres: &'a [Sphere],
+    pub planes: &'a [Plane],
+    pub origins: &'a [Vec3],
+    pub dirs: &'a [Vec3],
+    pub t_max: &'a [f32],
+    pub out_t: &'a mut [f32],
+    pub out_prim: &'a mut [PrimId],
+}
+
+impl Closest<'_> {
+    #[inline(always)]
+    fn group(&self, r: &Rays8) -> ([f32; LANES], [u32; LANES]) {
+        let mut best = r.t_max;
+        let mut prim = [PrimId::NONE.0; LANES];
+        for (i, s) in self.spheres.iter().enumerate() {
+            let Some((t, hit)) = sphere8(r, s, &best) else {
+                continue;
+            };
+            for l in 0..LANES {
+                best[l] = if hit[l] { t[l] } else { best[l] };
+                prim[l] = if hit[l] { i as u32 } else { prim[l] };
+            }
+        }
+        let ns = self.spheres.len() as u32;
+        for (i, p) in self.planes.iter().enumerate() {
+            let (t, hit) = plane8(r, p, &best);
+            for l in 0..LANES {
+                best[l] = if hit[l] { t[l] } else { best[l] };
+                prim[l] = if hit[l] { ns + i as u32 } else { prim[l] };
+            }
+        }
+        for l in 0..LANES {
+            best[l] = if prim[l] == PrimId::NONE.0 {
+                f32::INFINITY
+            } else {
+                best[l]
+            };
+        }
+        (best, prim)
+    }
+}
+
+impl Kernel for Closest<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self, _level: Level) {
+        let n = self.origins.len();
+        let mut start = 0;
+        while start < n {
+            let end = (start + LANES).min(n);
+            let r = Rays8::load(
+                &self.origins[start..end],
+                &self.dirs[start..end],
+                &self.t_max[start..end],
+            );
+            let (t, prim) = self.group(&r);
+            for (l, i) in (start..end).enumerate() {
+                self.out_t[i] = t[l];
+                self.out_prim[i] = PrimId(prim[l]);
+            }
+            start = end;
+        }
+    }
+}
+
+/// Whether any analytic primitive blocks each ray: `out[i]` as
+/// [`super::World::intersect_occluded`] gives it for a world of these spheres and planes only.
+pub(crate) struct Occluded<'a> {
+    pub spheres: &'a [Sphere],
+    pub planes: &'a [Plane],
+    pub origins: &'a [Vec3],
+    pub dirs: &'a [Vec3],
+    pub t_max: &'a [f32],
+    pub out: &'a mut [bool],
+}
+
+impl Kernel for Occluded<'_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(self, _level: Level) {
+        let n = self.origins.len();
+        let mut start = 0;
+        while start < n {
+            let end = (start + LANES).min(n);
+            let r = Rays8::load(
+                &self.origins[start..end],
+                &self.dirs[start..end],
+                &self.t_max[start..end],
+            );
+            let mut any = [false; LANES];
+            for s in self.spheres {
+                let Some((_, hit)) = sphere8(&r, s, &r.t_max) else {
+                    continue;
+                };
+                for l in 0..LANES {
+                    any[l] |= hit[l];
+                }
+            }
+            for p in self.planes {
+                let (_, hit) = plane8(&r, p, &r.t_max);
+                for l in 0..LANES {
+                    any[l] |= hit[l];
+                }
+            }
+            self.out[start..end].copy_from_slice(&any[..end - start]);
+            start = end;
+        }
+    }
+}
+
+/// Runs [`Closest`] at the current SIMD level.
+pub(crate) fn closest(k: Closest<'_>) {
+    dispatch(Level::current(), k)
+}
+
+/// Runs [`Occluded`] at the current SIMD level.
+pub(crate) fn occluded(k: Occluded<'_>) {
+    dispatch(Level::current(), k)
+}
+
+/// The output columns of [`World::surface_batch`], one row per hit (a chunk of the hit queue).
+pub struct SurfaceOut<'a> {
+    /// [`Surface::point`](super::Surface::point) of each row.
+    pub point: &'a mut [Vec3],
+    /// [`Surface::normal`](super::Surface::normal) of each row.
+    pub normal: &'a mut [Vec3],
+    /// [`Surface::material`](super::Surface::material) of each row.
+    pub material: &'a mut [u32],
+    /// [`Surface::spawn`](super::Surface::spawn) of each row.
+    pub spawn: &'a mut [Vec3],
+    /// [`Surface::shading`](super::Surface::shading) of each row.
+    pub shading: &'a mut [Vec3],
+}
+
+/// One analytic primitive as the surface kernel reads it: a sphere (`centre`, `radius`) or a
+/// plane (`point` in `centre`, `normal`).
+#[derive(Clone, Copy, Debug, Default)]
+struct PrimEntry {
+    sphere: bool,
+    centre: [f32; 3],
+    radius: f32,
+    normal: [f32; 3],
+    material: u32,
+}
+
+/// [`World::surface`] of 8 analytic hits in lanes (see [`World::surface_batch`]).
+struct Surfaces<'a, 'b> {
+    prims: &'a [PrimEntry],
+    prim: &'a [PrimId],
+    origins: &'a [Vec3],
+    dirs: &'a [Vec3],
+    t: &'a [f32],
+    out: SurfaceOut<'b>,
+}
+
+/// `next_float_up` / `next_float_down` of [`crate::geometry::offset`], chosen by the sign of
+/// `offset` (unchanged for a zero offset), as `offset_ray_origin` applies them per component.
+#[inline(always)]
+fn nudge(v: f32, offset: f32) -> f32 {
+    let up = offset > 0.0;
+    let down = offset < 0.0;
+    // Infinities in the direction of the step and NaN stay.
+    let stay = v.is_nan() | (up & (v == f32::INFINITY)) | (down & (v == f32::NEG_INFINITY));
+    // Both zeros step from +0.0 up and from -0.0 down.
+    let z = if up { 0.0f32 } else { -0.0f32 };
+    let w = if v == 0.0 { z } else { v };
+    let bits = w.to_bits();
+    // Away from zero: up from +0.0 or a positive, down from -0.0 or a negative.
+    let away = if up { w >= 0.0 } else { w <= 0.0 };
+    let moved = if away {
+        bits.wrapping_add(1)
+    } else {
+        bits.wrapping_sub(1)
+    };
+    if stay | !(up | down) {
+        v
+    } else {
+        f32::from_bits(moved)
+    }
+}
+
+impl Surfaces<'_, '_> {
+    /// Rows `start..end` (at most [`LANES`]): gathered into lanes, computed branch-free, stored.
+    #[inline(always)]
+    fn group(&mut self, start: usize, end: usize) {
+        let last = self.prims.len() - 1;
+        let (g2, g4, g5) = (gamma(2), gamma(4), gamma(5));
+        let mut o = [[0.0f32; LANES]; 3];
+        let mut d = [[0.0f32; LANES]; 3];
+        let mut t = [0.0f32; LANES];
+        let mut c = [[0.0f32; LANES]; 3];
+        let mut nn = [[0.0f32; LANES]; 3];
+        let mut radius = [0.0f32; LANES];
+        let mut sphere = [false; LANES];
+        let mut material = [0u32; LANES];
+        for (l, i) in (start..end).enumerate() {
+            let e = &self.prims[(self.prim[i].0 as usize).min(last)];
+            for k in 0..3 {
+                o[k][l] = self.origins[i][k];
+                d[k][l] = self.dirs[i][k];
+                c[k][l] = e.centre[k];
+                nn[k][l] = e.normal[k];
+            }
+            (t[l], radius[l], sphere[l], material[l]) = (self.t[i], e.radius, e.sphere, e.material);
+        }
+        let mut point = [[0.0f32; LANES]; 3];
+        let mut normal = [[0.0f32; LANES]; 3];
+        let mut spawn = [[0.0f32; LANES]; 3];
+        for l in 0..LANES {
+            let p = [0, 1, 2].map(|k| o[k][l] + t[l] * d[k][l]);
+            // Sphere: re-projected through the centre.
+            let a = [0, 1, 2].map(|k| p[k] - c[k][l]);
+            let len = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
+            let rcp = 1.0 / len;
+            let sn = a.map(|x| x * rcp);
+            let v = sn.map(|x| radius[l] * x);
+            let sp = [0, 1, 2].map(|k| c[k][l] + v[k]);
+            // Plane: projected along its normal.
+            let n = [nn[0][l], nn[1][l], nn[2][l]];
+            let s = a[0] * n[0] + a[1] * n[1] + a[2] * n[2];
+            let pp = [0, 1, 2].map(|k| p[k] - s * n[k]);
+            let s_error = g4 * ((a[0] * n[0]).abs() + (a[1] * n[1]).abs() + (a[2] * n[2]).abs());
+            let mut pt = [0.0f32; 3];
+            let mut geo = [0.0f32; 3];
+            let mut err = [0.0f32; 3];
+            for k in 0..3 {
+                let sphere_err = g5 * v[k].abs() + g2 * sp[k].abs();
+                let plane_err = n[k].abs() * s_error + g2 * (pp[k].abs() + (s * n[k]).abs());
+                pt[k] = if sphere[l] { sp[k] } else { pp[k] };
+                geo[k] = if sphere[l] { sn[k] } else { n[k] };
+                err[k] = if sphere[l] { sphere_err } else { plane_err };
+            }
+            let flip = geo[0] * d[0][l] + geo[1] * d[1][l] + geo[2] * d[2][l] > 0.0;
+            let nf = geo.map(|g| if flip { -g } else { g });
+            let dd = nf[0].abs() * err[0] + nf[1].abs() * err[1] + nf[2].abs() * err[2];
+            let po = [0, 1, 2].map(|k| {
+                let offset = dd * nf[k];
+                nudge(pt[k] + offset, offset)
+            });
+            let finite = po[0].is_finite() & po[1].is_finite() & po[2].is_finite();
+            for k in 0..3 {
+                point[k][l] = pt[k];
+                normal[k][l] = nf[k];
+                spawn[k][l] = if finite { po[k] } else { pt[k] };
+            }
+        }
+        for (l, i) in (start..end).enumerate() {
+            let col = |x: &[[f32; LANES]; 3]| Vec3::new(x[0][l], x[1][l], x[2][l]);
+            self.out.point[i] = col(&point);
+            self.out.normal[i] = col(&normal);
+            self.out.shading[i] = col(&normal);
+            self.out.spawn[i] = col(&spawn);
+            self.out.material[i] = material[l];
+        }
+    }
+}
+
+impl Kernel for Surfaces<'_, '_> {
+    type Output = ();
+    #[inline(always)]
+    fn run(mut self, _level: Level) {
+        let n = self.prim.len();
+        let mut start = 0;
+        while start < n {
+            let end = (start + LANES).min(n);
+            self.group(start, end);
+            start = end;
+        }
+    }
+}
+
+/// The world's spheres, then its planes, as the surface kernel reads them (primitive id order).
+fn prim_entries(world: &World) -> impl Iterator<Item = PrimEntry> + '_ {
+    let spheres = world.spheres.iter().map(|s| PrimEntry {
+        sphere: true,
+        centre: s.center.to_array(),
+        radius: s.radius,
+        normal: [0.0; 3],
+        material: s.material,
+    });
+    let planes = world.planes.iter().map(|p| PrimEntry {
+        sphere: false,
+        centre: p.point.to_array(),
+        radius: 0.0,
+        normal: p.normal.to_array(),
+        material: p.material,
+    });
+    spheres.chain(planes)
+}
+
+impl World {
+    /// [`World::surface`] of every row, bit-identical to it: `out`'s columns receive row `i`'s
+    /// surface. Sphere and plane hits go through one branch-free kernel compiled per SIMD level
+    /// (both re-projections evaluated, the primitive's chosen by a select); triangle hits, and
+    /// worlds with the fixed-epsilon offset, call [`World::surface`] row by row.
+    /// Panics if the slices' lengths differ.
+    pub fn surface_batch(
+        &self,
+        prim: &[PrimId],
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t: &[f32],
+        out: SurfaceOut<'_>,
+    ) {
+        let n = prim.len();
+        assert!(origins.len() == n && dirs.len() == n && t.len() == n);
+        assert!(out.point.len() == n && out.normal.len() == n && out.material.len() == n);
+        assert!(out.spawn.len() == n && out.shading.len() == n);
+        let analytic = self.spheres.len() + self.planes.len();
+        if analytic == 0 || self.robustness.offset != OffsetMethod::ErrorBound {
+            for i in 0..n {
+                let s = self.surface(prim[i], origins[i], dirs[i], t[i]);
+                (out.point[i], out.normal[i], out.material[i]) = (s.point, s.normal, s.material);
+                (out.spawn[i], out.shading[i]) = (s.spawn, s.shading);
+            }
+            return;
+        }
+        let mut prims = [PrimEntry::default(); 16];
+        let table: Vec<PrimEntry>;
+        let entries = prim_entries(self);
+        let prims: &[PrimEntry] = if analytic <= prims.len() {
+            for (slot, e) in prims.iter_mut().zip(entries) {
+                *slot = e;
+            }
+            &prims[..analytic]
+        } else {
+            table = entries.collect();
+            &table
+        };
+        let triangles = self.triangles.is_some();
+        let SurfaceOut {
+            point,
+            normal,
+            material,
+            spawn,
+            shading,
+        } = out;
+        dispatch(
+            Level::current(),
+            Surfaces {
+                prims,
+                prim,
+                origins,
+                dirs,
+                t,
+                out: SurfaceOut {
+                    point: &mut *point,
+                    normal: &mut *normal,
+                    material: &mut *material,
+                    spawn: &mut *spawn,
+                    shading: &mut *shading,
+                },
+            },
+        );
+        if triangles {
+            for i in 0..n {
+                if prim[i].0 as usize >= analytic {
+                    let s = self.surface(prim[i], origins[i], dirs[i], t[i]);
+                    (point[i], normal[i], material[i]) = (s.point, s.normal, s.material);
+                    (spawn[i], shading[i]) = (s.spawn, s.shading);
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::sampling::Rng;
+    use crate::scene::builtin::spheres;
+    use crate::world::World;
+
+    /// Rays from scene A's eye, from points on and near its surfaces, and poisoned ones.
+    fn rays(n: usize) -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
+        let mut rng = Rng(17);
+        let mut o = vec![];
+        let mut d = vec![];
+        let mut t = vec![];
+        for i in 0..n {
+            let origin = match i % 5 {
+                0 => Vec3::ZERO,
+                1 => Vec3::new(rng.range(-6.0, 6.0), -2.0, rng.range(-12.0, 0.0)),
+                2 => Vec3::new(-4.0, 0.0, -7.0) + Vec3::new(0.0, 1.0 + 1e-6, 0.0),
+                3 => Vec3::new(rng.range(-9.0, 9.0), rng.range(-3.0, 5.0), -20.0),
+                _ => Vec3::new(0.0, 0.0, -5.0 + rng.range(0.99, 1.01)),
+            };
+            let dir = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+            );
+            let dir = match i % 97 {
+                0 => Vec3::NAN,
+                1 => Vec3::ZERO,
+                2 => Vec3::new(1.0, 0.0, 0.0),
+                _ => dir.normalize_or(Vec3::NEG_Z),
+            };
+            o.push(if i % 89 == 0 { Vec3::INFINITY } else { origin });
+            d.push(dir);
+            t.push(match i % 3 {
+                0 => f32::INFINITY,
+                1 => rng.range(0.0, 12.0),
+                _ => 5.0,
+            });
+        }
+        (o, d, t)
+    }
+
+    #[test]
+    fn closest_and_occluded_match_the_scalar_tests_bit_for_bit_at_every_level() {
+        let world = World::load(&spheres()).unwrap();
+        let (o, d, t) = rays(10_007);
+        for level in Level::supported() {
+            let mut out_t = vec![0.0; o.len()];
+            let mut out_prim = vec![PrimId(7); o.len()];
+            dispatch(
+                level,
+                Closest {
+                    spheres: world.spheres(),
+                    planes: world.planes(),
+                    origins: &o,
+                    dirs: &d,
+                    t_max: &t,
+                    out_t: &mut out_t,
+                    out_prim: &mut out_prim,
+                },
+            );
+            let mut occ = vec![false; o.len()];
+            dispatch(
+                level,
+                Occluded {
+                    spheres: world.spheres(),
+                    planes: world.planes(),
+                    origins: &o,
+                    dirs: &d,
+                    t_max: &t,
+                    out: &mut occ,
+                },
+            );
+            for i in 0..o.len() {
+                let (st, sp) = world.intersect_closest(o[i], d[i], t[i]);
+                assert_eq!(
+                    (out_t[i].to_bits(), out_prim[i]),
+                    (st.to_bits(), sp),
+                    "{level:?} ray {i}"
+                );
+                assert_eq!(
+                    occ[i],
+                    world.intersect_occluded(o[i], d[i], t[i]),
+                    "{level:?} ray {i}"
+                );
+            }
+        }
+    }
+
+    /// Scene A plus a soup of triangles around its spheres, a triangle coinciding with the floor
+    /// (ties) and one through the green sphere: the mixed world's batch queries against the
+    /// scalar ones, row for row.
+    #[test]
+    fn a_mixed_world_batches_like_the_scalar_queries() {
+        use crate::accel::kdtree::BuildMethod;
+        use crate::mesh::TriangleMesh;
+        let scene = spheres();
+        let mut rng = Rng(5);
+        let mut vertices = vec![];
+        let mut indices = vec![];
+        for k in 0..300u32 {
+            let c = Vec3::new(
+                rng.range(-8.0, 8.0),
+                rng.range(-2.0, 4.0),
+                rng.range(-14.0, -2.0),
+            );
+            for _ in 0..3 {
+                let v = c + Vec3::new(
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                    rng.range(-1.0, 1.0),
+                );
+                vertices.push(v.to_array());
+            }
+            indices.push([3 * k, 3 * k + 1, 3 * k + 2]);
+        }
+        let b = vertices.len() as u32;
+        vertices.extend([[-20.0, -2.0, 5.0], [20.0, -2.0, 5.0], [0.0, -2.0, -40.0]]);
+        vertices.extend([[-2.0, 0.0, -5.0], [2.0, 0.0, -5.0], [0.0, 2.0, -5.0]]);
+        indices.extend([[b, b + 1, b + 2], [b + 3, b + 4, b + 5]]);
+        let world = World::with_mesh(
+            &scene,
+            &TriangleMesh::new(vertices, indices),
+            BuildMethod::Sah,
+        );
+        let (o, d, t) = rays(20_011);
+        let mut out_t = vec![0.0; o.len()];
+        let mut out_prim = vec![PrimId(7); o.len()];
+        world.intersect_closest_batch(&o, &d, &t, &mut out_t, &mut out_prim);
+        let mut occ = vec![false; o.len()];
+        world.intersect_occluded_batch(&o, &d, &t, &mut occ);
+        let mut triangles = 0;
+        for i in 0..o.len() {
+            let (st, sp) = world.intersect_closest(o[i], d[i], t[i]);
+            assert_eq!(
+                (out_t[i].to_bits(), out_prim[i]),
+                (st.to_bits(), sp),
+                "ray {i}"
+            );
+            assert_eq!(
+                occ[i],
+                world.intersect_occluded(o[i], d[i], t[i]),
+                "ray {i}"
+            );
+            triangles += usize::from(sp.is_hit() && sp.0 >= 4);
+        }
+        assert!(triangles > 1000, "the mesh is hit ({triangles} rays)");
+    }
+
+    #[test]
+    fn nudge_is_next_float_up_and_down() {
+        use crate::geometry::offset::{next_float_down, next_float_up};
+        let values = [
+            0.0f32,
+            -0.0,
+            1.0,
+            -1.0,
+            f32::MIN_POSITIVE,
+            -f32::MIN_POSITIVE,
+            f32::from_bits(1),
+            -f32::from_bits(1),
+            f32::MAX,
+            -f32::MAX,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+            3.5e-3,
+            -7.25e5,
+        ];
+        for v in values {
+            assert_eq!(nudge(v, 1.0).to_bits(), next_float_up(v).to_bits(), "{v}");
+            assert_eq!(
+                nudge(v, -1.0).to_bits(),
+                next_float_down(v).to_bits(),
+                "{v}"
+            );
+            assert_eq!(nudge(v, 0.0).to_bits(), v.to_bits(), "{v}");
+        }
+    }
+
+    #[test]
+    fn surfaces_match_the_scalar_surface_bit_for_bit_at_every_level() {
+        let world = World::load(&spheres()).unwrap();
+        let (o, d, t) = rays(10_007);
+        let mut hit_t = vec![0.0; o.len()];
+        let mut prim = vec![PrimId::NONE; o.len()];
+        world.intersect_closest_batch(&o, &d, &t, &mut hit_t, &mut prim);
+        let rows: Vec<usize> = (0..o.len()).filter(|&i| prim[i].is_hit()).collect();
+        let pick = |c: &[Vec3]| rows.iter().map(|&i| c[i]).collect::<Vec<_>>();
+        let (o, d) = (pick(&o), pick(&d));
+        let t: Vec<f32> = rows.iter().map(|&i| hit_t[i]).collect();
+        let prim: Vec<PrimId> = rows.iter().map(|&i| prim[i]).collect();
+        assert!(rows.len() > 3000);
+        let n = rows.len();
+        for level in Level::supported() {
+            let mut cols = (
+                vec![Vec3::NAN; n],
+                vec![Vec3::NAN; n],
+                vec![9; n],
+                vec![Vec3::NAN; n],
+            );
+            let mut shading = vec![Vec3::NAN; n];
+            dispatch(
+                level,
+                Surfaces {
+                    prims: &prim_entries(&world).collect::<Vec<_>>(),
+                    prim: &prim,
+                    origins: &o,
+                    dirs: &d,
+                    t: &t,
+                    out: SurfaceOut {
+                        point: &mut cols.0,
+                        normal: &mut cols.1,
+                        material: &mut cols.2,
+                        spawn: &mut cols.3,
+                        shading: &mut shading,
+                    },
+                },
+            );
+            for i in 0..n {
+                let s = world.surface(prim[i], o[i], d[i], t[i]);
+                let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(cols.0[i]), bits(s.point), "{level:?} row {i}");
+                assert_eq!(bits(cols.1[i]), bits(s.normal), "{level:?} row {i}");
+                assert_eq!(cols.2[i], s.material, "{level:?} row {i}");
+                assert_eq!(bits(cols.3[i]), bits(s.spawn), "{level:?} row {i}");
+                assert_eq!(bits(shading[i]), bits(s.shading), "{level:?} row {i}");
+            }
+        }
+    }
+}
