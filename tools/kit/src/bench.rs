@@ -109,15 +109,27 @@ impl Observer for Capture {
     }
 }
 
+/// Samples in the wave whose queues the stage kernels (and the Embree peer) are timed on: 2^16,
+/// a queue far larger than a render's own waves (2^12 samples,
+/// [`wavefront::schedule::DEFAULT_WAVE_SAMPLES`]), so a kernel's throughput is measured rather
+/// than its fixed cost per call, and the same ray arrays as earlier sessions' figures (Sibenik:
+/// the 65,536 camera rays of rows 256–383 and their shadow rays).
+pub const SNAPSHOT_WAVE_SAMPLES: usize = 1 << 16;
+
 impl Snapshot {
-    /// Renders one wave of `scene` through the schedule, keeping each stage's input: the whole
-    /// frame when it fits one wave, else a full wave of whole rows starting at the image's middle
-    /// row (the first rows are often all sky). Runs on the current rayon pool.
+    /// Renders one wave of [`SNAPSHOT_WAVE_SAMPLES`] samples of `scene` through the schedule,
+    /// keeping each stage's input: the whole frame when it fits one wave, else a full wave of
+    /// whole rows starting at the image's middle row (the first rows are often all sky). Runs on
+    /// the current rayon pool.
     pub fn capture(scene: &Scene, world: &World) -> Snapshot {
         let image = &scene.image;
         // A validated scene has at most u32::MAX pixels.
         let total = u32::try_from(scene.image.pixel_count()).unwrap_or(u32::MAX);
-        let per_wave = RenderOptions::default().pixels_per_wave(scene);
+        let snapshot_options = RenderOptions {
+            wave_samples: SNAPSHOT_WAVE_SAMPLES,
+            ..RenderOptions::default()
+        };
+        let per_wave = snapshot_options.pixels_per_wave(scene);
         let rows = per_wave.div_ceil(image.width).min(image.height);
         let first_row = (image.height / 2).min(image.height - rows);
         let options = RenderOptions {
@@ -127,7 +139,7 @@ impl Snapshot {
                 y0: first_row,
                 y1: first_row + rows,
             }),
-            ..RenderOptions::default()
+            ..snapshot_options
         };
         let wave = schedule::waves(scene, &options)
             .next()
