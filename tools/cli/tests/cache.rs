@@ -5,26 +5,24 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-/// A fresh scratch directory, removed on drop.
-struct Scratch(PathBuf);
+use wavefront_kit::testkit;
+
+/// A scratch directory ([`testkit::Scratch`], removed on drop) to run the binary in.
+struct Scratch(testkit::Scratch);
 
 impl Scratch {
     fn new(name: &str) -> Scratch {
-        let dir =
-            std::env::temp_dir().join(format!("wavefront-cache-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("scratch directory");
-        Scratch(dir)
+        Scratch(testkit::Scratch::new(&format!("cache-{name}")))
     }
 
     fn path(&self) -> &Path {
-        &self.0
+        self.0.path()
     }
 
     fn run(&self, args: &[&str]) -> Output {
         Command::new(env!("CARGO_BIN_EXE_wavefront"))
             .args(args)
-            .current_dir(&self.0)
+            .current_dir(self.0.path())
             .env("XDG_CACHE_HOME", self.0.join("xdg"))
             .output()
             .expect("cannot run the wavefront binary")
@@ -37,12 +35,6 @@ impl Scratch {
             .unwrap_or_default();
         v.sort();
         v
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 

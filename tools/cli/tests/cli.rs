@@ -1,30 +1,27 @@
 //! The command line (SPEC §9), run as a separate process in a scratch directory.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-use wavefront_kit::testkit::{SCENE_TOKENS, mutate_from};
+use wavefront_kit::testkit::{self, SCENE_TOKENS, mutate_from};
 
-/// A fresh, empty scratch directory, removed on drop.
-struct Scratch(PathBuf);
+/// A scratch directory ([`testkit::Scratch`], removed on drop) to run the binary in.
+struct Scratch(testkit::Scratch);
 
 impl Scratch {
     fn new(name: &str) -> Scratch {
-        let dir = std::env::temp_dir().join(format!("wavefront-cli-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("cannot create a scratch directory");
-        Scratch(dir)
+        Scratch(testkit::Scratch::new(&format!("cli-{name}")))
     }
 
     fn path(&self) -> &Path {
-        &self.0
+        self.0.path()
     }
 
     /// Runs the binary with `args` in this directory.
     fn run(&self, args: &[&str]) -> Output {
         Command::new(env!("CARGO_BIN_EXE_wavefront"))
             .args(args)
-            .current_dir(&self.0)
+            .current_dir(self.0.path())
             .env_remove("WAVEFRONT_SIBENIK")
             // Tree-cache entries stay in the scratch directory, not the user's cache.
             .env("XDG_CACHE_HOME", self.0.join("cache"))
@@ -34,18 +31,7 @@ impl Scratch {
 
     /// Names of the files in the directory, sorted.
     fn files(&self) -> Vec<String> {
-        let mut names: Vec<String> = std::fs::read_dir(&self.0)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .collect();
-        names.sort();
-        names
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
+        self.0.files()
     }
 }
 

@@ -1,29 +1,27 @@
 //! Regions, tiles, frames and merging through the command line (SPEC §10, §11), and the Slurm
 //! job scripts (without Slurm: `farm slurm --print` and the written scripts).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
 
-/// A fresh, empty scratch directory, removed on drop.
-struct Scratch(PathBuf);
+use wavefront_kit::testkit;
+
+/// A scratch directory ([`testkit::Scratch`], removed on drop) to run the binary in.
+struct Scratch(testkit::Scratch);
 
 impl Scratch {
     fn new(name: &str) -> Scratch {
-        let dir =
-            std::env::temp_dir().join(format!("wavefront-farm-{}-{name}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).expect("cannot create a scratch directory");
-        Scratch(dir)
+        Scratch(testkit::Scratch::new(&format!("farm-{name}")))
     }
 
     fn path(&self) -> &Path {
-        &self.0
+        self.0.path()
     }
 
     fn command(&self, args: &[&str]) -> Command {
         let mut c = Command::new(env!("CARGO_BIN_EXE_wavefront"));
         c.args(args)
-            .current_dir(&self.0)
+            .current_dir(self.0.path())
             .env_remove("SLURM_ARRAY_TASK_ID")
             .env_remove("JOB_COMPLETION_INDEX")
             // Tree-cache entries stay in the scratch directory, not the user's cache.
@@ -66,7 +64,7 @@ impl Scratch {
             }
         }
         let mut out = vec![];
-        walk(&self.0, &self.0, &mut out);
+        walk(self.0.path(), self.0.path(), &mut out);
         out.sort();
         out
     }
@@ -88,12 +86,6 @@ impl Scratch {
         assert!(lines[0].starts_with("error: "), "{err}");
         assert_eq!(self.files(), before, "{args:?} left files behind");
         lines[0].to_owned()
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
     }
 }
 
