@@ -3,22 +3,28 @@
 //! when either child would receive all of the node's triangles the node becomes a leaf, and a
 //! depth cap guarantees termination.
 
+use super::build_sah::Flat;
+use super::node::KdNode;
 use super::overlap::{Aabb, tri_box_overlap};
-use super::{BuildNode, MAX_BUILD_DEPTH, split_box, tri_verts};
+use super::{MAX_BUILD_DEPTH, split_box, tri_verts};
 use crate::mesh::TriangleMesh;
 
 /// Nodes with more triangles than this build their children in parallel.
 const PARALLEL_MIN: usize = 2048;
 
-/// Builds the midpoint tree over `tris` (non-degenerate triangle indices) in box `root`.
-pub(crate) fn build(mesh: &TriangleMesh, root: Aabb, tris: Vec<u32>) -> BuildNode {
-    node(mesh, root, tris, 0)
+/// Builds the midpoint tree over `tris` (non-degenerate triangle indices, ascending) in box
+/// `root`.
+pub(crate) fn build(mesh: &TriangleMesh, root: Aabb, tris: Vec<u32>) -> Flat {
+    let mut out = Flat::default();
+    node(mesh, root, tris, 0, &mut out);
+    out
 }
 
-fn node(mesh: &TriangleMesh, bx: Aabb, tris: Vec<u32>, depth: usize) -> BuildNode {
+/// Builds the subtree over `tris` in box `bx`, appending it to `out` in pre-order.
+fn node(mesh: &TriangleMesh, bx: Aabb, tris: Vec<u32>, depth: usize, out: &mut Flat) {
     let n = tris.len();
     if n == 0 || depth >= MAX_BUILD_DEPTH {
-        return BuildNode::Leaf(tris);
+        return out.leaf(&tris);
     }
     let ext = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
     let axis = if ext[0] >= ext[1] && ext[0] >= ext[2] {
@@ -30,7 +36,7 @@ fn node(mesh: &TriangleMesh, bx: Aabb, tris: Vec<u32>, depth: usize) -> BuildNod
     };
     let split = bx.0[axis] + 0.5 * ext[axis];
     if !(split > bx.0[axis] && split < bx.1[axis]) {
-        return BuildNode::Leaf(tris);
+        return out.leaf(&tris);
     }
     let (lb, rb) = split_box(&bx, axis, split);
     let mut left = Vec::new();
@@ -45,26 +51,23 @@ fn node(mesh: &TriangleMesh, bx: Aabb, tris: Vec<u32>, depth: usize) -> BuildNod
         }
     }
     if left.len() == n || right.len() == n {
-        return BuildNode::Leaf(tris);
+        return out.leaf(&tris);
     }
     drop(tris);
-    let (l, r) = if n > PARALLEL_MIN {
+    let here = out.nodes.len();
+    out.nodes.push(KdNode::inner(axis, split, 0));
+    let mut sub = Flat::default();
+    if n > PARALLEL_MIN {
         rayon::join(
-            || node(mesh, lb, left, depth + 1),
-            || node(mesh, rb, right, depth + 1),
-        )
+            || node(mesh, lb, left, depth + 1, out),
+            || node(mesh, rb, right, depth + 1, &mut sub),
+        );
     } else {
-        (
-            node(mesh, lb, left, depth + 1),
-            node(mesh, rb, right, depth + 1),
-        )
-    };
-    BuildNode::Inner {
-        axis,
-        split,
-        left: Box::new(l),
-        right: Box::new(r),
+        node(mesh, lb, left, depth + 1, out);
+        node(mesh, rb, right, depth + 1, &mut sub);
     }
+    out.nodes[here] = KdNode::inner(axis, split, out.nodes.len() as u32);
+    out.append(sub);
 }
 
 #[cfg(test)]

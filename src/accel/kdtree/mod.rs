@@ -91,97 +91,32 @@ pub struct KdTree {
     pub(crate) triangle_count: usize,
 }
 
-/// Builder output before flattening into [`KdNode`]s.
-pub(crate) enum BuildNode {
-    /// Leaf with its triangle indices.
-    Leaf(Vec<u32>),
-    /// Inner node.
-    Inner {
-        axis: usize,
-        split: f32,
-        left: Box<BuildNode>,
-        right: Box<BuildNode>,
-    },
-}
-
 impl KdTree {
     /// Builds a tree over `mesh` (rayon splits the upper levels across threads; the result does
     /// not depend on the thread count).
     pub fn build(mesh: &TriangleMesh, method: BuildMethod) -> KdTree {
-        let (lo, hi) = mesh.bounds();
-        let root: Aabb = (lo.to_array(), hi.to_array());
-        let tris: Vec<u32> = (0..mesh.len())
-            .filter(|&k| !mesh.is_degenerate(k))
-            .map(|k| k as u32)
-            .collect();
-        match method {
-            BuildMethod::Midpoint => {
-                KdTree::from_build(&build_midpoint::build(mesh, root, tris), root, mesh.len())
-            }
-            BuildMethod::Sah => {
-                let flat = build_binned::build(mesh, root, tris);
-                KdTree {
-                    nodes: flat.nodes,
-                    tri_indices: flat.tris,
-                    root,
-                    triangle_count: mesh.len(),
-                }
-            }
-        }
+        let (root, tris) = build_input(mesh);
+        let flat = match method {
+            BuildMethod::Midpoint => build_midpoint::build(mesh, root, tris),
+            BuildMethod::Sah => build_binned::build(mesh, root, tris),
+        };
+        KdTree::from_flat(flat, root, mesh)
     }
 
     /// The SAH tree with the exact event sweep at every level (Wald & Havran 2006), no binning:
     /// the reference [`BuildMethod::Sah`]'s binned upper levels are measured against.
     pub fn build_sah_exact(mesh: &TriangleMesh) -> KdTree {
-        let (lo, hi) = mesh.bounds();
-        let root: Aabb = (lo.to_array(), hi.to_array());
-        let tris: Vec<u32> = (0..mesh.len())
-            .filter(|&k| !mesh.is_degenerate(k))
-            .map(|k| k as u32)
-            .collect();
-        let flat = build_sah::build(mesh, root, tris);
+        let (root, tris) = build_input(mesh);
+        KdTree::from_flat(build_sah::build(mesh, root, tris), root, mesh)
+    }
+
+    /// A builder's output over `mesh` as a tree with root box `root`.
+    fn from_flat(flat: build_sah::Flat, root: Aabb, mesh: &TriangleMesh) -> KdTree {
         KdTree {
             nodes: flat.nodes,
             tri_indices: flat.tris,
             root,
             triangle_count: mesh.len(),
-        }
-    }
-
-    /// Flattens a builder tree into pre-order nodes.
-    pub(crate) fn from_build(tree: &BuildNode, root: Aabb, triangle_count: usize) -> KdTree {
-        let mut nodes = Vec::new();
-        let mut tri_indices = Vec::new();
-        // Explicit stack: (node, index of the parent whose right link must be patched).
-        let mut stack: Vec<(&BuildNode, Option<usize>)> = vec![(tree, None)];
-        while let Some((n, patch)) = stack.pop() {
-            let here = nodes.len();
-            if let Some(p) = patch {
-                let parent: KdNode = nodes[p];
-                nodes[p] = KdNode::inner(parent.axis(), parent.split(), here as u32);
-            }
-            match n {
-                BuildNode::Leaf(tris) => {
-                    nodes.push(KdNode::leaf(tri_indices.len() as u32, tris.len() as u32));
-                    tri_indices.extend_from_slice(tris);
-                }
-                BuildNode::Inner {
-                    axis,
-                    split,
-                    left,
-                    right,
-                } => {
-                    nodes.push(KdNode::inner(*axis, *split, 0));
-                    stack.push((right, Some(here)));
-                    stack.push((left, None));
-                }
-            }
-        }
-        KdTree {
-            nodes,
-            tri_indices,
-            root,
-            triangle_count,
         }
     }
 
@@ -205,6 +140,17 @@ impl KdTree {
         let start = n.offset() as usize;
         &self.tri_indices[start..start + n.count() as usize]
     }
+}
+
+/// What every builder starts from: the mesh's bounds as the root box, and its non-degenerate
+/// triangles in ascending order (degenerate ones are never hit, so no tree holds them).
+fn build_input(mesh: &TriangleMesh) -> (Aabb, Vec<u32>) {
+    let (lo, hi) = mesh.bounds();
+    let tris = (0..mesh.len())
+        .filter(|&k| !mesh.is_degenerate(k))
+        .map(|k| k as u32)
+        .collect();
+    ((lo.to_array(), hi.to_array()), tris)
 }
 
 /// Root box used for traversal and validation: the stored root box joined with the mesh bounds.
