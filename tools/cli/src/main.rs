@@ -16,7 +16,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::frame::RenderFrame;
 use wavefront::mesh::{ObjMesh, TriangleMesh};
-use wavefront::output::{ImageFormat, ImageMeta, ImageStream};
+use wavefront::output::{ImageFormat, ImageMeta, ImageStream, PartialFile};
 use wavefront::scene::overrides::Overrides;
 use wavefront::schedule::{MAX_WAVE_SAMPLES, Progress as ProgressObserver};
 use wavefront::{
@@ -542,11 +542,13 @@ fn build_tree(
     let start = Instant::now();
     let tree = KdTree::build(&m, method);
     let build = start.elapsed().as_secs_f64();
-    let mut text = Vec::new();
-    tree.write_text_in(&mut text, &frame)
-        .context("cannot format the tree")?;
-    wavefront::film::write_atomically(output, &text)
-        .with_context(|| format!("cannot write {}", output.display()))?;
+    // Streamed to a partial file renamed over the output when complete: the text of a large tree
+    // (~330 B a triangle) is never held in memory, and a failed write leaves no file behind.
+    let cannot_write = || format!("cannot write {}", output.display());
+    let (partial, file) = PartialFile::create(output).with_context(cannot_write)?;
+    tree.write_text_in(file, &frame)
+        .with_context(cannot_write)?;
+    partial.commit().with_context(cannot_write)?;
     let stats = tree.stats(&m);
     let mut stored = None;
     if let Some(c) = cache.cache() {

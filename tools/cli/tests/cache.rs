@@ -256,3 +256,37 @@ fn kdtree_build_stores_an_entry_a_render_then_hits_and_prints_json() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("--threads"));
 }
+
+#[test]
+fn kdtree_build_streams_a_complete_tree_file_or_none() {
+    let dir = setup("stream");
+    let o = dir.run(&["kdtree", "build", "grid.obj", "-o", "grid.kd", "--no-cache"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The streamed file is a whole tree: rendering through it gives the built-in SAH tree's image.
+    let (from_file, err) = render(&dir, "file.png", &["--kdtree", "grid.kd", "--no-cache"]);
+    assert!(err.is_empty(), "{err}");
+    let (built, _) = render(&dir, "built.png", &["--kdtree", "sah", "--no-cache"]);
+    assert!(from_file == built, "the tree file renders another image");
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(!names.iter().any(|n| n.ends_with(".partial")), "{names:?}");
+    // An output that cannot be written: one line naming it, a failure, and no file.
+    let o = dir.run(&[
+        "kdtree",
+        "build",
+        "grid.obj",
+        "-o",
+        "missing/grid.kd",
+        "--no-cache",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success());
+    assert!(
+        err.contains("missing/grid.kd") && !err.contains("panicked"),
+        "{err}"
+    );
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(!dir.path().join("missing").exists());
+}
