@@ -53,9 +53,9 @@ use crate::simd::{bits, max_ps, min_ps};
 pub(super) const WIDE: usize = 64;
 
 /// Live lanes at or below which a frustum's lanes go on one by one through the single-ray loop
-/// (measured on Sibenik's mirror reflections: 1 to 4 equally good, 8 slower, about 13 % faster
-/// than none).
-const SOLO: u32 = 4;
+/// (measured on Sibenik's mirror reflections: 1, 2 and 4 within the noise, 2 a little ahead,
+/// 8 slower; about 13 % faster than never).
+const SOLO: u32 = 2;
 
 /// Largest mean spread of a frustum's origins (L∞ extent of their box, relative to the root
 /// box's largest side) for which rays from many origins stay frusta: reflections off a mirror
