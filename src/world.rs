@@ -384,7 +384,9 @@ impl World {
         out_t: &mut [f32],
         out_prim: &mut [PrimId],
     ) {
-        const BLOCK: usize = 256;
+        // Whole trace chunks, so camera rays still form 8 × 8-pixel frusta (blocks of 256 rays,
+        // half an image row, traced at about half the speed).
+        const BLOCK: usize = crate::stages::intersect::TRACE_CHUNK;
         let base = self.triangle_base();
         let mut limit = [0.0f32; BLOCK];
         let mut tri_t = [0.0f32; BLOCK];

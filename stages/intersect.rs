@@ -62,8 +62,14 @@ pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'
     // Every row is overwritten below: only a growing column needs filling.
     out.t.resize(n, f32::INFINITY);
     out.prim.resize(n, PrimId::NONE);
-    // Small queues in smaller chunks, so every thread gets some (answers do not depend on it).
-    let chunk = TRACE_CHUNK.min((n / (4 * rayon::current_num_threads())).max(MIN_CHUNK));
+    // Small queues in smaller chunks, so every thread gets some (answers do not depend on it);
+    // on one thread, whole chunks (the frusta find more coherent neighbours in them).
+    let threads = rayon::current_num_threads();
+    let chunk = if threads == 1 {
+        TRACE_CHUNK
+    } else {
+        TRACE_CHUNK.min((n / (4 * threads)).max(MIN_CHUNK))
+    };
     out.t
         .par_chunks_mut(chunk)
         .zip(out.prim.par_chunks_mut(chunk))

@@ -12,10 +12,10 @@
 //! cell, is a grid of screen tiles (an 8 × 8 pixel tile at one sample per pixel for a chunk of 8
 //! image rows); a counting sort orders the rays tile by tile (queue order inside a tile) and runs
 //! of [`WIDE`] consecutive rays become one frustum. Rays whose direction the watertight test
-//! rejects go one by one. A batch from many origins (reflections) goes as frusta of [`NARROW`]
-//! rays (their lanes diverge sooner), and only while they keep at least 2/5 of their lanes busy
-//! in the lane steps (measured over the batch after two frusta); otherwise the caller traces it
-//! as 4-ray packets.
+//! rejects go one by one. A batch from many origins (mirror reflections: the rays of a screen
+//! tile reflected by one plane leave from a small patch of it) goes the same way while its
+//! frusta's origins stay close together ([`MAX_SPREAD`], measured over the batch's first two
+//! frusta); otherwise the caller traces it as 4-ray packets.
 //!
 //! **Traversal** ([`KdAccel::walk_frustum`]). One node fetch per frustum; whole-frustum culling
 //! through the lane mask (a node no lane enters is never fetched, a group of lanes none of which
@@ -26,7 +26,8 @@
 //! [`WIDE`] rays and no lane work. Elsewhere every lane takes exactly the single-ray step
 //! ([`super::interval::step`], written out per lane below so LLVM vectorises it), visits its
 //! leaves in the single ray's order and culls with its own best hit, so answers are bit-identical
-//! to [`KdAccel::intersect_closest`]. Lanes agree on the near child (the origin's side) unless
+//! to [`KdAccel::intersect_closest`]. Where at most [`SOLO`] lanes are left, they go on one by
+//! one through the single-ray loop from their own intervals and best hits. Lanes agree on the near child (the origin's side) unless
 //! their origins lie on both sides of the plane (or on it, with opposite direction signs); there
 //! each lane's children are oriented left/right and the lowest live lane's near side goes first.
 //! That order changes no answer: a lane still visits every leaf that starts before its best hit
@@ -41,15 +42,27 @@ use glam::Vec3;
 
 use super::KdAccel;
 use super::interval::{DELTA, HI};
-use crate::accel::kdtree::MAX_DEPTH;
+use super::ray::Ray;
+use super::single::Entry;
+use super::visit::{Closest, Visitor};
+use crate::accel::kdtree::{MAX_DEPTH, TriHit};
 use crate::geometry::triangle::WatertightRay;
 use crate::simd::{bits, max_ps, min_ps};
 
 /// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
 pub(super) const WIDE: usize = 64;
 
-/// Rays per frustum for rays from many origins (reflections): a 4 × 4 tile.
-const NARROW: usize = 16;
+/// Live lanes at or below which a frustum's lanes go on one by one through the single-ray loop
+/// (measured on Sibenik's mirror reflections: 1, 2 and 4 within the noise, 2 a little ahead,
+/// 8 slower; about 13 % faster than never).
+const SOLO: u32 = 2;
+
+/// Largest mean spread of a frustum's origins (L∞ extent of their box, relative to the root
+/// box's largest side) for which rays from many origins stay frusta: reflections off a mirror
+/// measured 0.026 on Sibenik (a screen tile's footprint on the mirror), rays reflected about
+/// per-pixel normals 0.13 (a tile of similar directions gathers origins from the whole batch),
+/// and frusta of those ran at 0.4× the 4-ray packets.
+const MAX_SPREAD: f32 = 1.0 / 16.0;
 
 /// Stack entries of a frustum: one per tree level.
 const STACK: usize = MAX_DEPTH + 1;
@@ -123,10 +136,8 @@ struct Frustum {
     limit: [f32; WIDE],
     /// Cull distance (`Closest::cull`).
     cull: [f32; WIDE],
-    /// Lane steps taken (whole-frustum node steps that needed lane work), over the batch.
-    steps: u64,
-    /// Live lanes summed over those steps: `step_lanes / (steps · WIDE)` is the lane occupancy.
-    step_lanes: u64,
+    /// Spread of the origins ([`MAX_SPREAD`]) summed over the batch's frusta.
+    spread: f32,
 }
 
 /// Scratch space of a batch of frusta, allocated once per batch.
@@ -168,8 +179,7 @@ impl FrustumScratch {
                 best_tri: [0; WIDE],
                 limit: [0.0; WIDE],
                 cull: [0.0; WIDE],
-                steps: 0,
-                step_lanes: 0,
+                spread: 0.0,
             },
             stack: [WideEntry::default(); STACK],
             tmp: [[0.0; WIDE]; 3],
@@ -397,9 +407,7 @@ impl KdAccel {
         }
         let o = origins[0].to_array().map(f32::to_bits);
         let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
-        // Frusta from many origins diverge sooner: smaller ones keep more of their lanes busy.
-        let per = if shared { WIDE } else { NARROW };
-        self.regroup(dirs, per, scratch);
+        self.regroup(dirs, WIDE, scratch);
         let FrustumScratch {
             f,
             stack,
@@ -409,19 +417,19 @@ impl KdAccel {
             ..
         } = scratch;
         // `order` lists the rays permutation by permutation (invalid rays last), tile by tile.
-        f.steps = 0;
-        f.step_lanes = 0;
+        f.spread = 0.0;
+        let mut frusta = 0;
         let mut i = 0;
         while i < n {
-            // Rays from many origins (reflections) can be too incoherent for frusta: after the
-            // first two, if the lane steps kept fewer than 2/5 of their lanes busy, the batch
-            // goes as 4-ray packets instead (the answers are the same either way).
-            if !shared && i >= 2 * per && f.step_lanes * 5 < f.steps * 2 * per as u64 {
+            // Rays from many origins can be too incoherent for frusta: after the first two, if
+            // their origins spread too far, the batch goes as 4-ray packets instead (the answers
+            // are the same either way).
+            if !shared && frusta == 2 && f.spread > 2.0 * MAX_SPREAD {
                 return false;
             }
             let perm = key[order[i] as usize] >> 24;
             let mut end = i + 1;
-            while end < n && end < i + per && key[order[end] as usize] >> 24 == perm {
+            while end < n && end < i + WIDE && key[order[end] as usize] >> 24 == perm {
                 end += 1;
             }
             let rows = &order[i..end];
@@ -439,6 +447,7 @@ impl KdAccel {
                     rows,
                 };
                 self.frustum::<G>(&rays, out_t, out_tri, f, stack, tmp);
+                frusta += 1;
             }
             i = end;
         }
@@ -641,6 +650,11 @@ impl KdAccel {
             f.inv_hi[a] = max_all::<G>(&only(&f.inv[a], f32::NEG_INFINITY));
             f.slack_hi[a] = max_all::<G>(&only(&f.slack[a], f32::NEG_INFINITY));
         }
+        let side = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f32::max);
+        let extent = (0..3)
+            .map(|a| f.org_hi[a] - f.org_lo[a])
+            .fold(0.0, f32::max);
+        f.spread += extent / side;
         entry.lo = min_all::<G>(&entry.t0);
         entry.hi = max_all::<G>(&entry.t1);
         let lanes = entry.mask;
@@ -670,6 +684,11 @@ impl KdAccel {
         loop {
             // Descend to a leaf.
             let leaf = loop {
+                // Few lanes left: on one by one (the frustum's per-node work no longer pays).
+                if e.mask.count_ones() <= SOLO {
+                    self.solo_lanes(f, &e);
+                    break None;
+                }
                 let Some(&n) = nodes.get(e.node as usize) else {
                     break None;
                 };
@@ -744,8 +763,6 @@ impl KdAccel {
                 } else {
                     e.lo
                 };
-                f.steps += 1;
-                f.step_lanes += u64::from(m.count_ones());
                 let (mut go_near, mut go_far) = (0u64, 0u64);
                 let [near_t1, far_t0, far_t1] = tmp;
                 for g in 0..groups {
@@ -860,6 +877,38 @@ impl KdAccel {
                     e.mask = m;
                     break;
                 }
+            }
+        }
+    }
+
+    /// The lanes of `e` traced on through its subtree one by one with the single-ray loop
+    /// (from the lane's own interval, with its best hit so far), their answers written back.
+    /// Same steps, tests and culling as the lane would take, so the same answers.
+    #[inline(always)]
+    fn solo_lanes(&self, f: &mut Frustum, e: &WideEntry) {
+        let mut m = e.mask;
+        while m != 0 {
+            let k = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let origin = Vec3::new(f.org[0][k], f.org[1][k], f.org[2][k]);
+            let Some(ray) = Ray::<WatertightRay>::new(origin, f.dir[k], &self.root) else {
+                continue;
+            };
+            let best = (f.best_tri[k] != u32::MAX).then_some(TriHit {
+                t: f.best_t[k],
+                tri: f.best_tri[k],
+            });
+            let mut v = Closest::resume(f.t_max[k], best);
+            let start = Entry {
+                node: e.node,
+                t0: e.t0[k],
+                t1: e.t1[k],
+            };
+            self.walk(&ray, start, &mut v);
+            if let Some(h) = v.finish(false) {
+                (f.best_t[k], f.best_tri[k]) = (h.t, h.tri);
+                f.limit[k] = v.limit();
+                f.cull[k] = v.cull();
             }
         }
     }

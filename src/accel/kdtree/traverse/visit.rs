@@ -44,6 +44,15 @@ pub(super) struct Closest {
     best: Option<TriHit>,
 }
 
+impl Closest {
+    /// A visitor for a ray with bound `t_max` that has already found `best` (a traversal
+    /// carried on by another loop).
+    #[inline(always)]
+    pub(super) fn resume(t_max: f32, best: Option<TriHit>) -> Closest {
+        Closest { t_max, best }
+    }
+}
+
 impl Visitor for Closest {
     type Out = Option<TriHit>;
 
