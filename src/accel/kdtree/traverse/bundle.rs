@@ -10,9 +10,10 @@
 //! ends met so far, at most [`MAX_APEXES`]); a ray within [`APEX_TOL`] of one (relative to its
 //! length or to the length of the ray that set it) joins it.
 //! Rays of one apex are grouped by the watertight test's axis permutation (the cube face of their
-//! direction, so every lane of a bundle reads the same vertex components) and sorted along a
-//! Morton curve of their direction on that face (a counting sort over a grid sized to the group),
-//! then cut into bundles of consecutive rays. Grouping only decides which rays share work: it
+//! direction, so every lane of a bundle reads the same vertex components). Runs of up to
+//! [`UNIT`] consecutive rays of one group (neighbours on screen, as the queue holds them) form
+//! units, sorted along a Morton curve of their first ray's direction on that face (a counting
+//! sort over a grid sized to the group), then packed whole into bundles. Grouping only decides which rays share work: it
 //! never changes an answer, and the output stays in the batch's order.
 //!
 //! **Culling from the light.** A bundle's lanes share the apex `A` as origin and run along
@@ -63,12 +64,18 @@ const ROUND: f32 = 1.0 / (1 << 20) as f32;
 /// Batches with fewer bundle-able rays than this go through the packet path as a whole.
 const MIN_BUNDLED: usize = 32;
 
-/// What grouping needs of one bundled ray.
+/// Most consecutive rays of a batch grouped and sorted as one unit.
+const UNIT: usize = 4;
+
+/// What grouping needs of one unit: consecutive bundled rays of one group.
 #[derive(Clone, Copy)]
 struct Prep {
-    /// Index of the ray in the batch.
+    /// Index of the unit's first ray in the batch.
     ray: u32,
-    /// The direction's components on the face's two other axes (`d[kx]`, `d[ky]`): the sort key.
+    /// Rays in the unit (1..=UNIT).
+    len: u8,
+    /// The first ray's direction components on the face's two other axes (`d[kx]`, `d[ky]`):
+    /// the sort key.
     uv: [f32; 2],
 }
 
@@ -245,10 +252,16 @@ impl<C: Count> BatchKernel<'_, C> {
         let mut apexes: Vec<Vec3> = Vec::with_capacity(MAX_APEXES);
         // Length of the ray whose far end set each apex.
         let mut founders: Vec<f32> = Vec::with_capacity(MAX_APEXES);
-        let mut preps: Vec<Prep> = Vec::with_capacity(n);
-        // Group of each prep: apex · 6 + face.
-        let mut groups: Vec<u8> = Vec::with_capacity(n);
+        // Units of up to `UNIT` consecutive rays of one group (neighbours in the batch are
+        // usually neighbours on screen), grouped and sorted as one.
+        let mut preps: Vec<Prep> = Vec::with_capacity(n / UNIT + 16);
+        // Group of each unit: apex · 6 + face.
+        let mut groups: Vec<u8> = Vec::with_capacity(n / UNIT + 16);
         let mut fallback: Vec<u32> = vec![];
+        let mut bundled = 0usize;
+        // The apex of the previous ray, tried first; the last ray put in a unit.
+        let mut last = 0usize;
+        let mut prev = usize::MAX;
         for i in 0..n {
             let (o, d, tm) = (origins[i], dirs[i], t_max[i]);
             // What the single ray rejects before traversal: never occluded.
@@ -265,8 +278,6 @@ impl<C: Count> BatchKernel<'_, C> {
                 2
             };
             let swap = d[kz] < 0.0;
-            let kx = (kz + 1 + usize::from(swap)) % 3;
-            let ky = (kz + 2 - usize::from(swap)) % 3;
             let far = o + d * tm;
             let length = (o - far).abs().max_element();
             let mut apex = None;
@@ -275,10 +286,14 @@ impl<C: Count> BatchKernel<'_, C> {
             if sane(o) && sane(far) && sane(d * tm) && length > 0.0 {
                 // Within the tolerance of this ray's length or of the one that set the apex
                 // (a short ray toward the light ends as near it as a long one, in world units).
-                apex = apexes
-                    .iter()
-                    .zip(&founders)
-                    .position(|(&a, &f)| (far - a).abs().max_element() <= APEX_TOL * length.max(f));
+                let near = |k: usize| {
+                    (far - apexes[k]).abs().max_element() <= APEX_TOL * length.max(founders[k])
+                };
+                apex = if last < apexes.len() && near(last) {
+                    Some(last)
+                } else {
+                    (0..apexes.len()).find(|&k| near(k))
+                };
                 if apex.is_none() && apexes.len() < MAX_APEXES {
                     apexes.push(far);
                     founders.push(length);
@@ -289,13 +304,29 @@ impl<C: Count> BatchKernel<'_, C> {
                 fallback.push(i as u32);
                 continue;
             };
-            groups.push((k * 6 + kz * 2 + usize::from(swap)) as u8);
+            last = k;
+            bundled += 1;
+            let g = (k * 6 + kz * 2 + usize::from(swap)) as u8;
+            if let Some(p) = preps.last_mut()
+                && groups.last() == Some(&g)
+                && prev.wrapping_add(1) == i
+                && (p.len as usize) < UNIT
+            {
+                p.len += 1;
+                prev = i;
+                continue;
+            }
+            let kx = (kz + 1 + usize::from(swap)) % 3;
+            let ky = (kz + 2 - usize::from(swap)) % 3;
+            groups.push(g);
             preps.push(Prep {
                 ray: i as u32,
+                len: 1,
                 uv: [d[kx], d[ky]],
             });
+            prev = i;
         }
-        if preps.len() < MIN_BUNDLED {
+        if bundled < MIN_BUNDLED {
             // Too few to bundle: the packet path for the whole batch.
             count.fallback(n as u32);
             accel.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| out[i] = o);
@@ -307,17 +338,25 @@ impl<C: Count> BatchKernel<'_, C> {
             out[i] = accel.intersect_occluded(origins[i], dirs[i], t_max[i]);
         }
         let order = sort_by_direction(&preps, &groups, w);
-        // Cut into bundles of one group and lay their lanes out, structure-of-arrays: bundle
-        // `b`'s row `r`, lane `l` at `(b · ROWS + r) · LANES + l` (lanes past a bundle's rays
-        // repeat its first ray and are masked off). Written once for the batch, so each bundle's
-        // lane loads read memory written long before (no store-forwarding stalls).
-        let mut bundles: Vec<BundleInfo> = Vec::with_capacity(preps.len() / w + 6 * MAX_APEXES);
-        let mut starts: Vec<u32> = Vec::with_capacity(preps.len() / w + 6 * MAX_APEXES);
+        // Cut into bundles of whole units of one group and lay their lanes out,
+        // structure-of-arrays: bundle `b`'s row `r`, lane `l` at `(b · ROWS + r) · LANES + l`
+        // (lanes past a bundle's rays repeat its first ray and are masked off). Written once for
+        // the batch, so each bundle's lane loads read memory written long before (no
+        // store-forwarding stalls).
+        let mut bundles: Vec<BundleInfo> = Vec::with_capacity(bundled / w * 2 + 6 * MAX_APEXES);
+        // Each bundle's units: `order[spans[b]..spans[b + 1]]`.
+        let mut spans: Vec<u32> = Vec::with_capacity(bundled / w * 2 + 6 * MAX_APEXES);
         let mut start = 0;
         while start < order.len() {
             let g = groups[order[start] as usize];
+            let mut len = preps[order[start] as usize].len as usize;
             let mut end = start + 1;
-            while end < order.len() && end - start < w && groups[order[end] as usize] == g {
+            while end < order.len() && groups[order[end] as usize] == g {
+                let more = preps[order[end] as usize].len as usize;
+                if len + more > w {
+                    break;
+                }
+                len += more;
                 end += 1;
             }
             let (kz, swap) = (g as usize % 6 / 2, g % 2 == 1);
@@ -326,18 +365,28 @@ impl<C: Count> BatchKernel<'_, C> {
             bundles.push(BundleInfo {
                 apex: g / 6,
                 k: [kx as u8, ky as u8, kz as u8],
-                len: (end - start) as u8,
+                len: len as u8,
             });
-            starts.push(start as u32);
+            spans.push(start as u32);
             start = end;
         }
+        spans.push(order.len() as u32);
         let mut block = vec![0.0f32; bundles.len() * ROWS * w];
         let mut lane_ray = vec![0u32; bundles.len() * w];
-        for (b, (info, &start)) in bundles.iter().zip(&starts).enumerate() {
+        for (b, info) in bundles.iter().enumerate() {
             let rows = &mut block[b * ROWS * w..(b + 1) * ROWS * w];
+            let units = &order[spans[b] as usize..spans[b + 1] as usize];
+            let first = preps[units[0] as usize].ray as usize;
+            let mut rays = units.iter().flat_map(|&u| {
+                let p = &preps[u as usize];
+                p.ray as usize..p.ray as usize + p.len as usize
+            });
             for l in 0..w {
-                let j = order[start as usize + l.min(info.len as usize - 1)];
-                let ray = preps[j as usize].ray as usize;
+                let ray = if l < info.len as usize {
+                    rays.next().unwrap_or(first)
+                } else {
+                    first
+                };
                 let (o, d) = (origins[ray], dirs[ray]);
                 for a in 0..3 {
                     rows[(ROW_O + a) * w + l] = o[a];
@@ -392,7 +441,7 @@ fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
     let mut size = [0usize; GROUPS];
     for (p, &g) in preps.iter().zip(groups) {
         let g = g as usize;
-        size[g] += 1;
+        size[g] += p.len as usize;
         for (k, &s) in p.uv.iter().enumerate() {
             lo[g][k] = lo[g][k].min(s);
             hi[g][k] = hi[g][k].max(s);
