@@ -262,69 +262,104 @@ impl<C: Count> BatchKernel<'_, C> {
         // The apex of the previous ray, tried first; the last ray put in a unit.
         let mut last = 0usize;
         let mut prev = usize::MAX;
-        for i in 0..n {
-            let (o, d, tm) = (origins[i], dirs[i], t_max[i]);
-            // What the single ray rejects before traversal: never occluded.
-            if tm.is_nan() || tm <= 0.0 {
-                continue;
-            }
-            // The watertight test's axes (as `WatertightRay::new` picks them): the face.
-            let a = d.abs();
-            let kz = if a.x >= a.y && a.x >= a.z {
-                0
-            } else if a.y >= a.z {
-                1
-            } else {
-                2
-            };
-            let swap = d[kz] < 0.0;
-            let far = o + d * tm;
-            let length = (o - far).abs().max_element();
-            let mut apex = None;
-            // Far from overflow, so `o − A`, the far end and the slack are finite.
-            let sane = |v: Vec3| v.is_finite() && v.abs().max_element() < 1e30;
-            if sane(o) && sane(far) && sane(d * tm) && length > 0.0 {
-                // Within the tolerance of this ray's length or of the one that set the apex
-                // (a short ray toward the light ends as near it as a long one, in world units).
-                let near = |k: usize| {
-                    (far - apexes[k]).abs().max_element() <= APEX_TOL * length.max(founders[k])
-                };
-                apex = if last < apexes.len() && near(last) {
-                    Some(last)
-                } else {
-                    (0..apexes.len()).find(|&k| near(k))
-                };
-                if apex.is_none() && apexes.len() < MAX_APEXES {
-                    apexes.push(far);
-                    founders.push(length);
-                    apex = Some(apexes.len() - 1);
+        let mut next = 0;
+        while next < n {
+            let mut end = next + 1;
+            if next + w <= n && last < apexes.len() {
+                // The common case first: `w` rays in lanes, all toward the previous ray's apex
+                // through one face, become whole units.
+                let r = next..next + w;
+                let face = uniform_face::<V>(
+                    &origins[r.clone()],
+                    &dirs[r.clone()],
+                    &t_max[r],
+                    apexes[last],
+                    founders[last],
+                );
+                if let Some(f) = face {
+                    let (kz, swap) = (f as usize / 2, f % 2 == 1);
+                    let kx = (kz + 1 + usize::from(swap)) % 3;
+                    let ky = (kz + 2 - usize::from(swap)) % 3;
+                    for i in (next..next + w).step_by(UNIT) {
+                        groups.push((last * 6) as u8 + f);
+                        preps.push(Prep {
+                            ray: i as u32,
+                            len: UNIT as u8,
+                            uv: [dirs[i][kx], dirs[i][ky]],
+                        });
+                    }
+                    bundled += w;
+                    next += w;
+                    prev = next - 1;
+                    continue;
                 }
+                end = next + w;
             }
-            let Some(k) = apex else {
-                fallback.push(i as u32);
-                continue;
-            };
-            last = k;
-            bundled += 1;
-            let g = (k * 6 + kz * 2 + usize::from(swap)) as u8;
-            if let Some(p) = preps.last_mut()
-                && groups.last() == Some(&g)
-                && prev.wrapping_add(1) == i
-                && (p.len as usize) < UNIT
-            {
-                p.len += 1;
+            for i in next..end {
+                let (o, d, tm) = (origins[i], dirs[i], t_max[i]);
+                // What the single ray rejects before traversal: never occluded.
+                if tm.is_nan() || tm <= 0.0 {
+                    continue;
+                }
+                // The watertight test's axes (as `WatertightRay::new` picks them): the face.
+                let a = d.abs();
+                let kz = if a.x >= a.y && a.x >= a.z {
+                    0
+                } else if a.y >= a.z {
+                    1
+                } else {
+                    2
+                };
+                let swap = d[kz] < 0.0;
+                let far = o + d * tm;
+                let length = (o - far).abs().max_element();
+                let mut apex = None;
+                // Far from overflow, so `o − A`, the far end and the slack are finite.
+                let sane = |v: Vec3| v.is_finite() && v.abs().max_element() < 1e30;
+                if sane(o) && sane(far) && sane(d * tm) && length > 0.0 {
+                    // Within the tolerance of this ray's length or of the one that set the apex
+                    // (a short ray toward the light ends as near it as a long one, in world units).
+                    let near = |k: usize| {
+                        (far - apexes[k]).abs().max_element() <= APEX_TOL * length.max(founders[k])
+                    };
+                    apex = if last < apexes.len() && near(last) {
+                        Some(last)
+                    } else {
+                        (0..apexes.len()).find(|&k| near(k))
+                    };
+                    if apex.is_none() && apexes.len() < MAX_APEXES {
+                        apexes.push(far);
+                        founders.push(length);
+                        apex = Some(apexes.len() - 1);
+                    }
+                }
+                let Some(k) = apex else {
+                    fallback.push(i as u32);
+                    continue;
+                };
+                last = k;
+                bundled += 1;
+                let g = (k * 6 + kz * 2 + usize::from(swap)) as u8;
+                if let Some(p) = preps.last_mut()
+                    && groups.last() == Some(&g)
+                    && prev.wrapping_add(1) == i
+                    && (p.len as usize) < UNIT
+                {
+                    p.len += 1;
+                    prev = i;
+                    continue;
+                }
+                let kx = (kz + 1 + usize::from(swap)) % 3;
+                let ky = (kz + 2 - usize::from(swap)) % 3;
+                groups.push(g);
+                preps.push(Prep {
+                    ray: i as u32,
+                    len: 1,
+                    uv: [d[kx], d[ky]],
+                });
                 prev = i;
-                continue;
             }
-            let kx = (kz + 1 + usize::from(swap)) % 3;
-            let ky = (kz + 2 - usize::from(swap)) % 3;
-            groups.push(g);
-            preps.push(Prep {
-                ray: i as u32,
-                len: 1,
-                uv: [d[kx], d[ky]],
-            });
-            prev = i;
+            next = end;
         }
         if bundled < MIN_BUNDLED {
             // Too few to bundle: the packet path for the whole batch.
@@ -421,6 +456,72 @@ impl<C: Count> BatchKernel<'_, C> {
             }
         }
     }
+}
+
+/// The face (`kz · 2 + swap`, as the single ray picks its axes) shared by all `V::LANES` rays
+/// `o`, `d`, `t` when every one is bundle-able (the checks of the per-ray grouping) and ends
+/// within the tolerance of `apex` (set by a ray of length `founder`); `None` otherwise (the
+/// rays are then grouped one by one). Grouping only: it changes no answer.
+#[inline(always)]
+fn uniform_face<V: Wide>(
+    o: &[Vec3],
+    d: &[Vec3],
+    t: &[f32],
+    apex: Vec3,
+    founder: f32,
+) -> Option<u8> {
+    let w = V::LANES;
+    let mut rows = [[0.0f32; 16]; 7];
+    for l in 0..w {
+        for a in 0..3 {
+            rows[a][l] = o[l][a];
+            rows[3 + a][l] = d[l][a];
+        }
+        rows[6][l] = t[l];
+    }
+    let o = [V::load(&rows[0]), V::load(&rows[1]), V::load(&rows[2])];
+    let d = [V::load(&rows[3]), V::load(&rows[4]), V::load(&rows[5])];
+    let tm = V::load(&rows[6]);
+    let (zero, big) = (V::splat(0.0), V::splat(1e30));
+    // Positive `t_max`; origin, far end and `d · t_max` finite and far from overflow (a NaN
+    // fails every comparison).
+    let mut ok = V::gt(tm, zero);
+    let mut length = zero;
+    let mut dist = zero;
+    for a in 0..3 {
+        let dt = d[a].mul(tm);
+        let far = o[a].add(dt);
+        let small = V::and(V::lt(far.abs(), big), V::lt(dt.abs(), big));
+        ok = V::and(ok, V::and(V::lt(o[a].abs(), big), small));
+        length = length.max(o[a].sub(far).abs());
+        dist = dist.max(far.sub(V::splat(apex[a])).abs());
+    }
+    ok = V::and(ok, V::gt(length, zero));
+    let tol = V::splat(APEX_TOL).mul(length.max(V::splat(founder)));
+    ok = V::and(ok, V::le(dist, tol));
+    let full = if w >= 32 { u32::MAX } else { (1u32 << w) - 1 };
+    if V::bits(ok) != full {
+        return None;
+    }
+    let a = [d[0].abs(), d[1].abs(), d[2].abs()];
+    let x_max = V::bits(V::and(V::le(a[1], a[0]), V::le(a[2], a[0])));
+    let kz = if x_max == full {
+        0
+    } else if x_max != 0 {
+        return None;
+    } else {
+        match V::bits(V::le(a[2], a[1])) {
+            b if b == full => 1,
+            0 => 2,
+            _ => return None,
+        }
+    };
+    let swap = match V::bits(V::lt(d[kz], zero)) {
+        0 => 0,
+        b if b == full => 1,
+        _ => return None,
+    };
+    Some((kz * 2 + swap) as u8)
 }
 
 /// The batch's columns (for the rare lanes that take the scalar triangle test).
