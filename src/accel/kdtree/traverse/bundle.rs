@@ -408,27 +408,29 @@ impl<C: Count> BatchKernel<'_, C> {
         spans.push(order.len() as u32);
         let mut block = vec![0.0f32; bundles.len() * ROWS * w];
         let mut lane_ray = vec![0u32; bundles.len() * w];
-        for (b, info) in bundles.iter().enumerate() {
-            let rows = &mut block[b * ROWS * w..(b + 1) * ROWS * w];
-            let units = &order[spans[b] as usize..spans[b + 1] as usize];
-            let first = preps[units[0] as usize].ray as usize;
-            let mut rays = units.iter().flat_map(|&u| {
+        for b in 0..bundles.len() {
+            // The bundle's rays, unit after unit, then its first ray again in the spare lanes.
+            let ids = &mut lane_ray[b * w..(b + 1) * w];
+            let mut l = 0;
+            for &u in &order[spans[b] as usize..spans[b + 1] as usize] {
                 let p = &preps[u as usize];
-                p.ray as usize..p.ray as usize + p.len as usize
-            });
-            for l in 0..w {
-                let ray = if l < info.len as usize {
-                    rays.next().unwrap_or(first)
-                } else {
-                    first
-                };
-                let (o, d) = (origins[ray], dirs[ray]);
+                for ray in p.ray..p.ray + p.len as u32 {
+                    if l < w {
+                        ids[l] = ray;
+                        l += 1;
+                    }
+                }
+            }
+            let first = ids[0];
+            ids[l..].fill(first);
+            let rows = &mut block[b * ROWS * w..(b + 1) * ROWS * w];
+            for (l, &ray) in ids.iter().enumerate() {
+                let (o, d) = (origins[ray as usize], dirs[ray as usize]);
                 for a in 0..3 {
                     rows[(ROW_O + a) * w + l] = o[a];
                     rows[(ROW_D + a) * w + l] = d[a];
                 }
-                rows[ROW_T_MAX * w + l] = t_max[ray];
-                lane_ray[b * w + l] = ray as u32;
+                rows[ROW_T_MAX * w + l] = t_max[ray as usize];
             }
         }
         let empty = Entry {
