@@ -10,11 +10,13 @@
 //! ends met so far, at most [`MAX_APEXES`]); a ray within [`APEX_TOL`] of one (relative to its
 //! length or to the length of the ray that set it) joins it.
 //! Rays of one apex are grouped by the watertight test's axis permutation (the cube face of their
-//! direction, so every lane of a bundle reads the same vertex components). Runs of up to
-//! [`UNIT`] consecutive rays of one group (neighbours on screen, as the queue holds them) form
-//! units, sorted along a Morton curve of their first ray's direction on that face (a counting
-//! sort over a grid sized to the group), then packed whole into bundles. Grouping only decides which rays share work: it
-//! never changes an answer, and the output stays in the batch's order.
+//! direction, so every lane of a bundle reads the same vertex components; `LANES` rays at a time
+//! in lanes when they all share the previous ray's apex and face, else ray by ray). Runs of up
+//! to [`UNIT`] consecutive rays of one group (neighbours on screen, as the queue holds them)
+//! form units, sorted along a Morton curve of their first ray's direction on that face (a
+//! counting sort over a grid sized to the group), then packed whole into bundles. Grouping only
+//! decides which rays share work: it never changes an answer, and the output stays in the
+//! batch's order.
 //!
 //! **Culling from the light.** A bundle's lanes share the apex `A` as origin and run along
 //! `A + s·(o − A)`, `s ∈ [0, 1]`: every lane agrees on which child of a split is near (the
