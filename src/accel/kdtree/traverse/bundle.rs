@@ -10,10 +10,13 @@
 //! ends met so far, at most [`MAX_APEXES`]); a ray within [`APEX_TOL`] of one (relative to its
 //! length or to the length of the ray that set it) joins it.
 //! Rays of one apex are grouped by the watertight test's axis permutation (the cube face of their
-//! direction, so every lane of a bundle reads the same vertex components) and sorted along a
-//! Morton curve of their direction on that face (a counting sort over a grid sized to the group),
-//! then cut into bundles of consecutive rays. Grouping only decides which rays share work: it
-//! never changes an answer, and the output stays in the batch's order.
+//! direction, so every lane of a bundle reads the same vertex components; `LANES` rays at a time
+//! in lanes when they all share the previous ray's apex and face, else ray by ray). Runs of up
+//! to [`UNIT`] consecutive rays of one group (neighbours on screen, as the queue holds them)
+//! form units, sorted along a Morton curve of their first ray's direction on that face (a
+//! counting sort over a grid sized to the group), then packed whole into bundles. Grouping only
+//! decides which rays share work: it never changes an answer, and the output stays in the
+//! batch's order.
 //!
 //! **Culling from the light.** A bundle's lanes share the apex `A` as origin and run along
 //! `A + s·(o − A)`, `s ∈ [0, 1]`: every lane agrees on which child of a split is near (the
@@ -63,12 +66,18 @@ const ROUND: f32 = 1.0 / (1 << 20) as f32;
 /// Batches with fewer bundle-able rays than this go through the packet path as a whole.
 const MIN_BUNDLED: usize = 32;
 
-/// What grouping needs of one bundled ray.
+/// Most consecutive rays of a batch grouped and sorted as one unit.
+const UNIT: usize = 4;
+
+/// What grouping needs of one unit: consecutive bundled rays of one group.
 #[derive(Clone, Copy)]
 struct Prep {
-    /// Index of the ray in the batch.
+    /// Index of the unit's first ray in the batch.
     ray: u32,
-    /// The direction's components on the face's two other axes (`d[kx]`, `d[ky]`): the sort key.
+    /// Rays in the unit (1..=UNIT).
+    len: u8,
+    /// The first ray's direction components on the face's two other axes (`d[kx]`, `d[ky]`):
+    /// the sort key.
     uv: [f32; 2],
 }
 
@@ -245,57 +254,116 @@ impl<C: Count> BatchKernel<'_, C> {
         let mut apexes: Vec<Vec3> = Vec::with_capacity(MAX_APEXES);
         // Length of the ray whose far end set each apex.
         let mut founders: Vec<f32> = Vec::with_capacity(MAX_APEXES);
-        let mut preps: Vec<Prep> = Vec::with_capacity(n);
-        // Group of each prep: apex · 6 + face.
-        let mut groups: Vec<u8> = Vec::with_capacity(n);
+        // Units of up to `UNIT` consecutive rays of one group (neighbours in the batch are
+        // usually neighbours on screen), grouped and sorted as one.
+        let mut preps: Vec<Prep> = Vec::with_capacity(n / UNIT + 16);
+        // Group of each unit: apex · 6 + face.
+        let mut groups: Vec<u8> = Vec::with_capacity(n / UNIT + 16);
         let mut fallback: Vec<u32> = vec![];
-        for i in 0..n {
-            let (o, d, tm) = (origins[i], dirs[i], t_max[i]);
-            // What the single ray rejects before traversal: never occluded.
-            if tm.is_nan() || tm <= 0.0 {
-                continue;
-            }
-            // The watertight test's axes (as `WatertightRay::new` picks them): the face.
-            let a = d.abs();
-            let kz = if a.x >= a.y && a.x >= a.z {
-                0
-            } else if a.y >= a.z {
-                1
-            } else {
-                2
-            };
-            let swap = d[kz] < 0.0;
-            let kx = (kz + 1 + usize::from(swap)) % 3;
-            let ky = (kz + 2 - usize::from(swap)) % 3;
-            let far = o + d * tm;
-            let length = (o - far).abs().max_element();
-            let mut apex = None;
-            // Far from overflow, so `o − A`, the far end and the slack are finite.
-            let sane = |v: Vec3| v.is_finite() && v.abs().max_element() < 1e30;
-            if sane(o) && sane(far) && sane(d * tm) && length > 0.0 {
-                // Within the tolerance of this ray's length or of the one that set the apex
-                // (a short ray toward the light ends as near it as a long one, in world units).
-                apex = apexes
-                    .iter()
-                    .zip(&founders)
-                    .position(|(&a, &f)| (far - a).abs().max_element() <= APEX_TOL * length.max(f));
-                if apex.is_none() && apexes.len() < MAX_APEXES {
-                    apexes.push(far);
-                    founders.push(length);
-                    apex = Some(apexes.len() - 1);
+        let mut bundled = 0usize;
+        // The apex of the previous ray, tried first; the last ray put in a unit.
+        let mut last = 0usize;
+        let mut prev = usize::MAX;
+        let mut next = 0;
+        while next < n {
+            let mut end = next + 1;
+            if next + w <= n && last < apexes.len() {
+                // The common case first: `w` rays in lanes, all toward the previous ray's apex
+                // through one face, become whole units.
+                let r = next..next + w;
+                let face = uniform_face::<V>(
+                    &origins[r.clone()],
+                    &dirs[r.clone()],
+                    &t_max[r],
+                    apexes[last],
+                    founders[last],
+                );
+                if let Some(f) = face {
+                    let (kz, swap) = (f as usize / 2, f % 2 == 1);
+                    let kx = (kz + 1 + usize::from(swap)) % 3;
+                    let ky = (kz + 2 - usize::from(swap)) % 3;
+                    for i in (next..next + w).step_by(UNIT) {
+                        groups.push((last * 6) as u8 + f);
+                        preps.push(Prep {
+                            ray: i as u32,
+                            len: UNIT as u8,
+                            uv: [dirs[i][kx], dirs[i][ky]],
+                        });
+                    }
+                    bundled += w;
+                    next += w;
+                    prev = next - 1;
+                    continue;
                 }
+                end = next + w;
             }
-            let Some(k) = apex else {
-                fallback.push(i as u32);
-                continue;
-            };
-            groups.push((k * 6 + kz * 2 + usize::from(swap)) as u8);
-            preps.push(Prep {
-                ray: i as u32,
-                uv: [d[kx], d[ky]],
-            });
+            for i in next..end {
+                let (o, d, tm) = (origins[i], dirs[i], t_max[i]);
+                // What the single ray rejects before traversal: never occluded.
+                if tm.is_nan() || tm <= 0.0 {
+                    continue;
+                }
+                // The watertight test's axes (as `WatertightRay::new` picks them): the face.
+                let a = d.abs();
+                let kz = if a.x >= a.y && a.x >= a.z {
+                    0
+                } else if a.y >= a.z {
+                    1
+                } else {
+                    2
+                };
+                let swap = d[kz] < 0.0;
+                let far = o + d * tm;
+                let length = (o - far).abs().max_element();
+                let mut apex = None;
+                // Far from overflow, so `o − A`, the far end and the slack are finite.
+                let sane = |v: Vec3| v.is_finite() && v.abs().max_element() < 1e30;
+                if sane(o) && sane(far) && sane(d * tm) && length > 0.0 {
+                    // Within the tolerance of this ray's length or of the one that set the apex
+                    // (a short ray toward the light ends as near it as a long one, in world units).
+                    let near = |k: usize| {
+                        (far - apexes[k]).abs().max_element() <= APEX_TOL * length.max(founders[k])
+                    };
+                    apex = if last < apexes.len() && near(last) {
+                        Some(last)
+                    } else {
+                        (0..apexes.len()).find(|&k| near(k))
+                    };
+                    if apex.is_none() && apexes.len() < MAX_APEXES {
+                        apexes.push(far);
+                        founders.push(length);
+                        apex = Some(apexes.len() - 1);
+                    }
+                }
+                let Some(k) = apex else {
+                    fallback.push(i as u32);
+                    continue;
+                };
+                last = k;
+                bundled += 1;
+                let g = (k * 6 + kz * 2 + usize::from(swap)) as u8;
+                if let Some(p) = preps.last_mut()
+                    && groups.last() == Some(&g)
+                    && prev.wrapping_add(1) == i
+                    && (p.len as usize) < UNIT
+                {
+                    p.len += 1;
+                    prev = i;
+                    continue;
+                }
+                let kx = (kz + 1 + usize::from(swap)) % 3;
+                let ky = (kz + 2 - usize::from(swap)) % 3;
+                groups.push(g);
+                preps.push(Prep {
+                    ray: i as u32,
+                    len: 1,
+                    uv: [d[kx], d[ky]],
+                });
+                prev = i;
+            }
+            next = end;
         }
-        if preps.len() < MIN_BUNDLED {
+        if bundled < MIN_BUNDLED {
             // Too few to bundle: the packet path for the whole batch.
             count.fallback(n as u32);
             accel.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| out[i] = o);
@@ -307,17 +375,25 @@ impl<C: Count> BatchKernel<'_, C> {
             out[i] = accel.intersect_occluded(origins[i], dirs[i], t_max[i]);
         }
         let order = sort_by_direction(&preps, &groups, w);
-        // Cut into bundles of one group and lay their lanes out, structure-of-arrays: bundle
-        // `b`'s row `r`, lane `l` at `(b · ROWS + r) · LANES + l` (lanes past a bundle's rays
-        // repeat its first ray and are masked off). Written once for the batch, so each bundle's
-        // lane loads read memory written long before (no store-forwarding stalls).
-        let mut bundles: Vec<BundleInfo> = Vec::with_capacity(preps.len() / w + 6 * MAX_APEXES);
-        let mut starts: Vec<u32> = Vec::with_capacity(preps.len() / w + 6 * MAX_APEXES);
+        // Cut into bundles of whole units of one group and lay their lanes out,
+        // structure-of-arrays: bundle `b`'s row `r`, lane `l` at `(b · ROWS + r) · LANES + l`
+        // (lanes past a bundle's rays repeat its first ray and are masked off). Written once for
+        // the batch, so each bundle's lane loads read memory written long before (no
+        // store-forwarding stalls).
+        let mut bundles: Vec<BundleInfo> = Vec::with_capacity(bundled / w * 2 + 6 * MAX_APEXES);
+        // Each bundle's units: `order[spans[b]..spans[b + 1]]`.
+        let mut spans: Vec<u32> = Vec::with_capacity(bundled / w * 2 + 6 * MAX_APEXES);
         let mut start = 0;
         while start < order.len() {
             let g = groups[order[start] as usize];
+            let mut len = preps[order[start] as usize].len as usize;
             let mut end = start + 1;
-            while end < order.len() && end - start < w && groups[order[end] as usize] == g {
+            while end < order.len() && groups[order[end] as usize] == g {
+                let more = preps[order[end] as usize].len as usize;
+                if len + more > w {
+                    break;
+                }
+                len += more;
                 end += 1;
             }
             let (kz, swap) = (g as usize % 6 / 2, g % 2 == 1);
@@ -326,25 +402,37 @@ impl<C: Count> BatchKernel<'_, C> {
             bundles.push(BundleInfo {
                 apex: g / 6,
                 k: [kx as u8, ky as u8, kz as u8],
-                len: (end - start) as u8,
+                len: len as u8,
             });
-            starts.push(start as u32);
+            spans.push(start as u32);
             start = end;
         }
+        spans.push(order.len() as u32);
         let mut block = vec![0.0f32; bundles.len() * ROWS * w];
         let mut lane_ray = vec![0u32; bundles.len() * w];
-        for (b, (info, &start)) in bundles.iter().zip(&starts).enumerate() {
+        for b in 0..bundles.len() {
+            // The bundle's rays, unit after unit, then its first ray again in the spare lanes.
+            let ids = &mut lane_ray[b * w..(b + 1) * w];
+            let mut l = 0;
+            for &u in &order[spans[b] as usize..spans[b + 1] as usize] {
+                let p = &preps[u as usize];
+                for ray in p.ray..p.ray + p.len as u32 {
+                    if l < w {
+                        ids[l] = ray;
+                        l += 1;
+                    }
+                }
+            }
+            let first = ids[0];
+            ids[l..].fill(first);
             let rows = &mut block[b * ROWS * w..(b + 1) * ROWS * w];
-            for l in 0..w {
-                let j = order[start as usize + l.min(info.len as usize - 1)];
-                let ray = preps[j as usize].ray as usize;
-                let (o, d) = (origins[ray], dirs[ray]);
+            for (l, &ray) in ids.iter().enumerate() {
+                let (o, d) = (origins[ray as usize], dirs[ray as usize]);
                 for a in 0..3 {
                     rows[(ROW_O + a) * w + l] = o[a];
                     rows[(ROW_D + a) * w + l] = d[a];
                 }
-                rows[ROW_T_MAX * w + l] = t_max[ray];
-                lane_ray[b * w + l] = ray as u32;
+                rows[ROW_T_MAX * w + l] = t_max[ray as usize];
             }
         }
         let empty = Entry {
@@ -374,6 +462,72 @@ impl<C: Count> BatchKernel<'_, C> {
     }
 }
 
+/// The face (`kz · 2 + swap`, as the single ray picks its axes) shared by all `V::LANES` rays
+/// `o`, `d`, `t` when every one is bundle-able (the checks of the per-ray grouping) and ends
+/// within the tolerance of `apex` (set by a ray of length `founder`); `None` otherwise (the
+/// rays are then grouped one by one). Grouping only: it changes no answer.
+#[inline(always)]
+fn uniform_face<V: Wide>(
+    o: &[Vec3],
+    d: &[Vec3],
+    t: &[f32],
+    apex: Vec3,
+    founder: f32,
+) -> Option<u8> {
+    let w = V::LANES;
+    let mut rows = [[0.0f32; 16]; 7];
+    for l in 0..w {
+        for a in 0..3 {
+            rows[a][l] = o[l][a];
+            rows[3 + a][l] = d[l][a];
+        }
+        rows[6][l] = t[l];
+    }
+    let o = [V::load(&rows[0]), V::load(&rows[1]), V::load(&rows[2])];
+    let d = [V::load(&rows[3]), V::load(&rows[4]), V::load(&rows[5])];
+    let tm = V::load(&rows[6]);
+    let (zero, big) = (V::splat(0.0), V::splat(1e30));
+    // Positive `t_max`; origin, far end and `d · t_max` finite and far from overflow (a NaN
+    // fails every comparison).
+    let mut ok = V::gt(tm, zero);
+    let mut length = zero;
+    let mut dist = zero;
+    for a in 0..3 {
+        let dt = d[a].mul(tm);
+        let far = o[a].add(dt);
+        let small = V::and(V::lt(far.abs(), big), V::lt(dt.abs(), big));
+        ok = V::and(ok, V::and(V::lt(o[a].abs(), big), small));
+        length = length.max(o[a].sub(far).abs());
+        dist = dist.max(far.sub(V::splat(apex[a])).abs());
+    }
+    ok = V::and(ok, V::gt(length, zero));
+    let tol = V::splat(APEX_TOL).mul(length.max(V::splat(founder)));
+    ok = V::and(ok, V::le(dist, tol));
+    let full = if w >= 32 { u32::MAX } else { (1u32 << w) - 1 };
+    if V::bits(ok) != full {
+        return None;
+    }
+    let a = [d[0].abs(), d[1].abs(), d[2].abs()];
+    let x_max = V::bits(V::and(V::le(a[1], a[0]), V::le(a[2], a[0])));
+    let kz = if x_max == full {
+        0
+    } else if x_max != 0 {
+        return None;
+    } else {
+        match V::bits(V::le(a[2], a[1])) {
+            b if b == full => 1,
+            0 => 2,
+            _ => return None,
+        }
+    };
+    let swap = match V::bits(V::lt(d[kz], zero)) {
+        0 => 0,
+        b if b == full => 1,
+        _ => return None,
+    };
+    Some((kz * 2 + swap) as u8)
+}
+
 /// The batch's columns (for the rare lanes that take the scalar triangle test).
 struct Rays<'a> {
     origins: &'a [Vec3],
@@ -392,7 +546,7 @@ fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
     let mut size = [0usize; GROUPS];
     for (p, &g) in preps.iter().zip(groups) {
         let g = g as usize;
-        size[g] += 1;
+        size[g] += p.len as usize;
         for (k, &s) in p.uv.iter().enumerate() {
             lo[g][k] = lo[g][k].min(s);
             hi[g][k] = hi[g][k].max(s);
