@@ -27,10 +27,10 @@
 //! ([`super::interval::step`], written out per lane below so LLVM vectorises it), visits its
 //! leaves in the single ray's order and culls with its own best hit, so answers are bit-identical
 //! to [`KdAccel::intersect_closest`]. Where at most [`SOLO`] lanes are left, they go on one by
-//! one through the single-ray loop from their own intervals and best hits. Lanes agree on the near child (the origin's side) unless
-//! their origins lie on both sides of the plane (or on it, with opposite direction signs); there
-//! each lane's children are oriented left/right and the lowest live lane's near side goes first.
-//! That order changes no answer: a lane still visits every leaf that starts before its best hit
+//! one through the single-ray loop from their own intervals and best hits. Lanes agree on the
+//! near child (the origin's side) unless their origins lie on both sides of the plane (or on it,
+//! with opposite direction signs); there each lane's children are oriented left/right and the
+//! lowest live lane's near side goes first. That order changes no answer: a lane still visits every leaf that starts before its best hit
 //! (culling skips only entries beyond it), so it meets the leaf holding its closest hit, and it
 //! keeps the least `(t, index)` of what it tests, as the single ray does.
 //!
