@@ -30,9 +30,10 @@
 //! one through the single-ray loop from their own intervals and best hits. Lanes agree on the
 //! near child (the origin's side) unless their origins lie on both sides of the plane (or on it,
 //! with opposite direction signs); there each lane's children are oriented left/right and the
-//! lowest live lane's near side goes first. That order changes no answer: a lane still visits every leaf that starts before its best hit
-//! (culling skips only entries beyond it), so it meets the leaf holding its closest hit, and it
-//! keeps the least `(t, index)` of what it tests, as the single ray does.
+//! lowest live lane's near side goes first. That order changes no answer: a lane still visits
+//! every leaf that starts before its best hit (culling skips only entries beyond it), so it meets
+//! the leaf holding its closest hit, and it keeps the least `(t, index)` of what it tests, as the
+//! single ray does.
 //!
 //! **Triangles**: one triangle against a group of lanes with the watertight test's operations in
 //! the scalar order, lanes on an edge retested with the scalar code (its double-precision
