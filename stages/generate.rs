@@ -11,6 +11,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::queue::lanes::store3;
 use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
 use crate::sampling::{Strata, uniform};
 use crate::scene::{Camera, ImageSettings};
@@ -127,9 +128,7 @@ impl Kernel for CameraKernel<'_> {
                 let rcp = 1.0 / (px * px + py * py + pz * pz).sqrt();
                 (d[0][l], d[1][l], d[2][l]) = (px * rcp, py * rcp, pz * rcp);
             }
-            for (l, o) in out.iter_mut().enumerate() {
-                *o = Vec3::new(d[0][l], d[1][l], d[2][l]);
-            }
+            store3(&d, out);
         }
     }
 }

@@ -20,6 +20,7 @@ use super::World;
 use crate::frame::{Plane, Sphere};
 use crate::geometry::offset::gamma;
 use crate::queue::PrimId;
+use crate::queue::lanes::{load3, store3};
 use crate::scene::OffsetMethod;
 use crate::simd::{Kernel, Level, dispatch};
 
@@ -39,15 +40,11 @@ impl Rays8 {
     #[inline(always)]
     fn load(origins: &[Vec3], dirs: &[Vec3], t_max: &[f32]) -> Rays8 {
         let mut r = Rays8 {
-            o: [[0.0; LANES]; 3],
-            d: [[0.0; LANES]; 3],
+            o: load3(origins),
+            d: load3(dirs),
             t_max: [0.0; LANES],
         };
-        for (l, ((o, d), t)) in origins.iter().zip(dirs).zip(t_max).enumerate() {
-            for k in 0..3 {
-                r.o[k][l] = o[k];
-                r.d[k][l] = d[k];
-            }
+        for (l, t) in t_max.iter().take(LANES).enumerate() {
             r.t_max[l] = *t;
         }
         r
@@ -310,8 +307,8 @@ impl Surfaces<'_, '_> {
     fn group(&mut self, start: usize, end: usize) {
         let last = self.prims.len() - 1;
         let (g2, g4, g5) = (gamma(2), gamma(4), gamma(5));
-        let mut o = [[0.0f32; LANES]; 3];
-        let mut d = [[0.0f32; LANES]; 3];
+        let o = load3(&self.origins[start..end]);
+        let d = load3(&self.dirs[start..end]);
         let mut t = [0.0f32; LANES];
         let mut c = [[0.0f32; LANES]; 3];
         let mut nn = [[0.0f32; LANES]; 3];
@@ -321,8 +318,6 @@ impl Surfaces<'_, '_> {
         for (l, i) in (start..end).enumerate() {
             let e = &self.prims[(self.prim[i].0 as usize).min(last)];
             for k in 0..3 {
-                o[k][l] = self.origins[i][k];
-                d[k][l] = self.dirs[i][k];
                 c[k][l] = e.centre[k];
                 nn[k][l] = e.normal[k];
             }
@@ -369,14 +364,11 @@ impl Surfaces<'_, '_> {
                 spawn[k][l] = if finite { po[k] } else { pt[k] };
             }
         }
-        for (l, i) in (start..end).enumerate() {
-            let col = |x: &[[f32; LANES]; 3]| Vec3::new(x[0][l], x[1][l], x[2][l]);
-            self.out.point[i] = col(&point);
-            self.out.normal[i] = col(&normal);
-            self.out.shading[i] = col(&normal);
-            self.out.spawn[i] = col(&spawn);
-            self.out.material[i] = material[l];
-        }
+        store3(&point, &mut self.out.point[start..end]);
+        store3(&normal, &mut self.out.normal[start..end]);
+        store3(&normal, &mut self.out.shading[start..end]);
+        store3(&spawn, &mut self.out.spawn[start..end]);
+        self.out.material[start..end].copy_from_slice(&material[..end - start]);
     }
 }
 
