@@ -57,6 +57,9 @@ impl Rays8 {
 /// negative or NaN (every lane misses: the roots' square root and divisions are skipped).
 #[inline(always)]
 fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], [bool; LANES])> {
+    if misses8(r, s) {
+        return None;
+    }
     let c = [s.center.x as f64, s.center.y as f64, s.center.z as f64];
     let rr = s.radius as f64 * s.radius as f64;
     let mut a = [0.0f64; LANES];
@@ -99,6 +102,39 @@ fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], 
         t_out[l] = t;
     }
     Some((t_out, hit))
+}
+
+/// Margin of [`misses8`], relative to `|o − c|² + r²`: f32 rounding moves the squared distance
+/// from the centre to a ray's line by at most a few tens of ulps of that sum (`2^-24` each), far
+/// below this.
+const MISS_MARGIN: f32 = 1e-4;
+
+/// A conservative f32 pre-test of [`sphere8`]: true only when every lane's line passes farther
+/// from the centre than the radius by more than [`MISS_MARGIN`] — then the f64 discriminant is
+/// negative in every lane and `sphere8` returns `None`, so skipping it changes no bit. Any doubt
+/// (a short group's empty lanes, a tiny or huge direction, a tiny radius, NaN or infinity, a
+/// line near the sphere) answers false and the f64 test decides.
+#[inline(always)]
+fn misses8(r: &Rays8, s: &Sphere) -> bool {
+    let rr = s.radius * s.radius;
+    if !(rr > 1e-30 && rr < 1e30) {
+        return false;
+    }
+    let c = s.center;
+    let mut miss = true;
+    for l in 0..LANES {
+        let f = [r.o[0][l] - c.x, r.o[1][l] - c.y, r.o[2][l] - c.z];
+        let d = [r.d[0][l], r.d[1][l], r.d[2][l]];
+        let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let b = f[0] * d[0] + f[1] * d[1] + f[2] * d[2];
+        let k = b / a;
+        let line = [f[0] - k * d[0], f[1] - k * d[1], f[2] - k * d[2]];
+        let ll = line[0] * line[0] + line[1] * line[1] + line[2] * line[2];
+        let ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
+        let margin = MISS_MARGIN * (ff + rr);
+        miss &= (a > 1e-10) & (a < 1e10) & (ll - rr > margin);
+    }
+    miss
 }
 
 /// [`crate::geometry::plane::intersect`] on 8 lanes against `best`.
