@@ -520,6 +520,7 @@ impl World {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::sphere;
     use crate::sampling::Rng;
     use crate::scene::builtin::spheres;
     use crate::world::World;
@@ -564,6 +565,78 @@ mod tests {
     fn closest_and_occluded_match_the_scalar_tests_bit_for_bit_at_every_level() {
         let world = World::load(&spheres()).unwrap();
         let (o, d, t) = rays(10_007);
+        batches_match_scalar(&world, &o, &d, &t);
+    }
+
+    /// Rays grazing each sphere of scene A, 8 per group aimed at the same relative distance
+    /// from the centre (1 ± 1e-7 … 1e-2 radii, the pre-test's margin among them).
+    fn grazing_rays() -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
+        let world = World::load(&spheres()).unwrap();
+        let mut rng = Rng(5);
+        let (mut o, mut d, mut t) = (vec![], vec![], vec![]);
+        let scales = [
+            0.99,
+            0.9999,
+            0.999_999,
+            1.0,
+            1.000_000_1,
+            1.000_001,
+            1.000_01,
+            1.000_03,
+            1.000_05,
+            1.0001,
+            1.0002,
+            1.0005,
+            1.001,
+            1.01,
+        ];
+        for s in world.spheres() {
+            for scale in scales {
+                for _ in 0..16 {
+                    let origin = Vec3::new(
+                        rng.range(-10.0, 10.0),
+                        rng.range(-1.0, 6.0),
+                        rng.range(-15.0, 2.0),
+                    );
+                    let to_c = s.center - origin;
+                    let side = to_c
+                        .cross(Vec3::new(rng.range(-1.0, 1.0), 1.0, rng.range(-1.0, 1.0)))
+                        .normalize();
+                    let target = s.center + side * s.radius * scale;
+                    o.push(origin);
+                    d.push((target - origin).normalize());
+                    t.push(f32::INFINITY);
+                }
+            }
+        }
+        (o, d, t)
+    }
+
+    #[test]
+    fn grazing_rays_match_the_scalar_tests_and_the_pre_test_skips_only_misses() {
+        let world = World::load(&spheres()).unwrap();
+        let (o, d, t) = grazing_rays();
+        batches_match_scalar(&world, &o, &d, &t);
+        let mut skipped = 0;
+        for g in (0..o.len()).step_by(LANES) {
+            let r = Rays8::load(&o[g..g + LANES], &d[g..g + LANES], &t[g..g + LANES]);
+            for s in world.spheres() {
+                if misses8(&r, s) {
+                    skipped += 1;
+                    for i in g..g + LANES {
+                        let hit = sphere::intersect_stable(o[i], d[i], s.center, s.radius, t[i]);
+                        assert_eq!(hit, None, "ray {i} skipped but hits {s:?}");
+                    }
+                }
+            }
+        }
+        // Groups aimed well outside (and far from the other spheres) are skipped.
+        assert!(skipped > 0);
+    }
+
+    /// Runs [`Closest`] and [`Occluded`] over the rays at every supported level and checks each
+    /// ray against the scalar queries, bit for bit.
+    fn batches_match_scalar(world: &World, o: &[Vec3], d: &[Vec3], t: &[f32]) {
         for level in Level::supported() {
             let mut out_t = vec![0.0; o.len()];
             let mut out_prim = vec![PrimId(7); o.len()];
@@ -572,9 +645,9 @@ mod tests {
                 Closest {
                     spheres: world.spheres(),
                     planes: world.planes(),
-                    origins: &o,
-                    dirs: &d,
-                    t_max: &t,
+                    origins: o,
+                    dirs: d,
+                    t_max: t,
                     out_t: &mut out_t,
                     out_prim: &mut out_prim,
                 },
@@ -585,9 +658,9 @@ mod tests {
                 Occluded {
                     spheres: world.spheres(),
                     planes: world.planes(),
-                    origins: &o,
-                    dirs: &d,
-                    t_max: &t,
+                    origins: o,
+                    dirs: d,
+                    t_max: t,
                     out: &mut occ,
                 },
             );
