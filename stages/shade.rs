@@ -307,6 +307,17 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
                     shading: &mut *shading,
                 },
             );
+            if settings.shadows {
+                // Ambient only (the lights come through shadow rays): `shade_hit`'s operations
+                // on the row's material, without building its `Surface`.
+                let materials = world.materials();
+                for (k, e) in emitted.iter_mut().enumerate() {
+                    let m = &materials[material[k] as usize];
+                    let i = r.start + k;
+                    *e = (weight[i] * (1.0 - m.alpha)) * (m.ka * settings.ambient);
+                }
+                return;
+            }
             for (k, e) in emitted.iter_mut().enumerate() {
                 let s = Surface {
                     point: point[k],
@@ -361,7 +372,7 @@ impl HitLanes {
             spec: [false; LANES],
             smooth: [false; LANES],
         };
-        for (l, h) in rows.enumerate() {
+        for (l, h) in rows.clone().enumerate() {
             let m = &materials[hits.material[h] as usize];
             for k in 0..3 {
                 x.kd[k][l] = m.kd[k];
@@ -369,7 +380,13 @@ impl HitLanes {
             }
             (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
             x.spec[l] = specular && m.has_specular();
-            x.smooth[l] = hits.shading[h] != hits.normal[h];
+        }
+        let shading = load3(&hits.shading[rows]);
+        for l in 0..LANES {
+            let same = (shading[0][l] == x.n[0][l])
+                & (shading[1][l] == x.n[1][l])
+                & (shading[2][l] == x.n[2][l]);
+            x.smooth[l] = !same;
         }
         x
     }
