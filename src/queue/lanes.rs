@@ -55,6 +55,21 @@ pub fn store3(x: &Lanes3, rows: &mut [Vec3]) {
     }
 }
 
+/// Values of a scalar column (at most [`LANES`] rows) in lanes; lanes past `rows.len()` hold
+/// `fill`.
+#[inline(always)]
+pub fn load1<T: Copy>(rows: &[T], fill: T) -> [T; LANES] {
+    if let Ok(full) = <&[T; LANES]>::try_from(rows) {
+        *full
+    } else {
+        let mut x = [fill; LANES];
+        for (l, v) in rows.iter().take(LANES).enumerate() {
+            x[l] = *v;
+        }
+        x
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -73,6 +88,11 @@ mod tests {
                     want.to_array(),
                     "n {n} lane {l}"
                 );
+            }
+            let ids: Vec<u32> = (0..n as u32).collect();
+            let l1 = load1(&ids, 99);
+            for l in 0..LANES {
+                assert_eq!(l1[l], if l < n { l as u32 } else { 99 });
             }
             let mut back = vec![Vec3::splat(7.0); n];
             store3(&x, &mut back);

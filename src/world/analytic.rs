@@ -20,7 +20,7 @@ use super::World;
 use crate::frame::{Plane, Sphere};
 use crate::geometry::offset::gamma;
 use crate::queue::PrimId;
-use crate::queue::lanes::{load3, store3};
+use crate::queue::lanes::{load1, load3, store3};
 use crate::scene::OffsetMethod;
 use crate::simd::{Kernel, Level, dispatch};
 
@@ -345,7 +345,7 @@ impl Surfaces<'_, '_> {
         let (g2, g4, g5) = (gamma(2), gamma(4), gamma(5));
         let o = load3(&self.origins[start..end]);
         let d = load3(&self.dirs[start..end]);
-        let mut t = [0.0f32; LANES];
+        let t = load1(&self.t[start..end], 0.0);
         let mut c = [[0.0f32; LANES]; 3];
         let mut nn = [[0.0f32; LANES]; 3];
         let mut radius = [0.0f32; LANES];
@@ -357,7 +357,7 @@ impl Surfaces<'_, '_> {
                 c[k][l] = e.centre[k];
                 nn[k][l] = e.normal[k];
             }
-            (t[l], radius[l], sphere[l], material[l]) = (self.t[i], e.radius, e.sphere, e.material);
+            (radius[l], sphere[l], material[l]) = (e.radius, e.sphere, e.material);
         }
         let mut point = [[0.0f32; LANES]; 3];
         let mut normal = [[0.0f32; LANES]; 3];
