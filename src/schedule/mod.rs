@@ -19,6 +19,7 @@
 pub mod observer;
 pub mod stage;
 
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Mutex;
@@ -372,7 +373,12 @@ pub fn render_into(
             observer,
         );
     };
-    if observer.watches_stages() || threads == 1 {
+    let pools = if observer.watches_stages() || threads == 1 {
+        None
+    } else {
+        wave_pools(threads)
+    };
+    let Some(pools) = pools else {
         // One wave at a time, each stage's kernels over all threads; observers see every call.
         let mut ws = WaveQueues::default();
         for wave in waves(scene, options) {
@@ -385,7 +391,7 @@ pub fn render_into(
             }
         }
         return;
-    }
+    };
     // Several waves at once: each worker traces whole waves, taken in order from a shared
     // counter, on its own queues (kept warm in its core's cache), inside its own one-thread pool
     // so the kernels run on that thread unsplit (no stealing of another wave's chunks). The
@@ -394,24 +400,23 @@ pub fn render_into(
     let stop = AtomicBool::new(false);
     let (send, receive) = crossbeam_channel::unbounded::<(usize, Wave, Vec<Vec3>)>();
     std::thread::scope(|scope| {
-        for _ in 0..threads {
+        for pool in &pools {
             let send = send.clone();
             let (next, stop, trace) = (&next, &stop, &trace);
             scope.spawn(move || {
-                let Ok(pool) = rayon::ThreadPoolBuilder::new().num_threads(1).build() else {
-                    return;
-                };
                 pool.install(|| {
-                    let mut ws = WaveQueues::default();
-                    while !stop.load(Ordering::Relaxed) {
-                        let Some((i, wave)) = next.lock().ok().and_then(|mut w| w.next()) else {
-                            break;
-                        };
-                        trace(&wave, &mut ws, &mut ());
-                        if send.send((i, wave, ws.pixels.clone())).is_err() {
-                            break;
+                    WAVE_QUEUES.with_borrow_mut(|ws| {
+                        while !stop.load(Ordering::Relaxed) {
+                            let Some((i, wave)) = next.lock().ok().and_then(|mut w| w.next())
+                            else {
+                                break;
+                            };
+                            trace(&wave, ws, &mut ());
+                            if send.send((i, wave, ws.pixels.clone())).is_err() {
+                                break;
+                            }
                         }
-                    }
+                    });
                 });
             });
         }
@@ -432,6 +437,40 @@ pub fn render_into(
             }
         }
     });
+    if let Ok(mut idle) = WAVE_POOLS.lock() {
+        idle.extend(pools);
+    }
+}
+
+/// One-thread pools of the wave-parallel path, idle between renders: a render takes one per
+/// thread and gives them back, so their threads (and the queues each keeps in
+/// [`WAVE_QUEUES`], warm in its cache) outlive the render.
+static WAVE_POOLS: Mutex<Vec<rayon::ThreadPool>> = Mutex::new(Vec::new());
+
+thread_local! {
+    /// The queues a wave-parallel worker traces its waves on, kept across waves and renders.
+    static WAVE_QUEUES: RefCell<WaveQueues> = RefCell::new(WaveQueues::default());
+}
+
+/// `threads` one-thread pools, idle ones first, new ones built as needed; `None` if a pool
+/// cannot be built (the render then traces one wave at a time).
+fn wave_pools(threads: usize) -> Option<Vec<rayon::ThreadPool>> {
+    let mut pools = WAVE_POOLS
+        .lock()
+        .map(|mut idle| {
+            let keep = idle.len().saturating_sub(threads);
+            idle.split_off(keep)
+        })
+        .unwrap_or_default();
+    while pools.len() < threads {
+        pools.push(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .ok()?,
+        );
+    }
+    Some(pools)
 }
 
 /// Traces one wave: each depth of the pipeline, each of its stages in order (shade and shadow
