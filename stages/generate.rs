@@ -11,6 +11,7 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::queue::lanes::store3;
 use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
 use crate::sampling::{Strata, uniform};
 use crate::scene::{Camera, ImageSettings};
@@ -61,6 +62,9 @@ struct CameraKernel<'a> {
     image: &'a ImageSettings,
     wave: &'a Wave,
     strata: &'a Strata,
+    /// Column and row of each sample's stratum (`s mod k`, `s div k`), as floats.
+    stratum_x: &'a [f32],
+    stratum_y: &'a [f32],
     first: u32,
     direction: &'a mut [Vec3],
 }
@@ -78,11 +82,12 @@ impl Kernel for CameraKernel<'_> {
         let (mut pixel, mut i, mut j) = (pixel.0, pixel.0 % nx, pixel.0 / nx);
         let jitter = strata.n > 1;
         let (kf, mf) = (strata.k as f32, strata.m as f32);
-        let (mut sx, mut sy) = (s % strata.k.max(1), s / strata.k.max(1));
+        let (tx, ty) = (self.stratum_x, self.stratum_y);
         let (rl, tb) = (cam.r - cam.l, cam.t - cam.b);
         let (nxf, nyf) = (nx as f32, ny as f32);
         let (u, v, w) = (cam.u, cam.v, cam.w);
         let dw = cam.d * w;
+        let iota: [u32; LANES] = std::array::from_fn(|l| l as u32);
         for out in self.direction.chunks_mut(LANES) {
             let mut lp = [0u32; LANES];
             let mut ls = [0u32; LANES];
@@ -90,22 +95,49 @@ impl Kernel for CameraKernel<'_> {
             let mut lj = [0.0f32; LANES];
             let mut lsx = [0.0f32; LANES];
             let mut lsy = [0.0f32; LANES];
-            for l in 0..out.len() {
-                (lp[l], ls[l], li[l], lj[l]) = (pixel, s, i as f32, j as f32);
-                (lsx[l], lsy[l]) = (sx as f32, sy as f32);
-                // The next slot: the next sample, or the next pixel of the region (row-major).
-                s += 1;
-                sx += 1;
-                if sx == strata.k {
-                    (sx, sy) = (0, sy + 1);
-                }
+            let full = out.len() == LANES;
+            if full && s as usize + LANES <= spp as usize {
+                // The group's 8 slots are samples s..s+8 of one pixel.
+                let k = s as usize;
+                (lp, li, lj) = ([pixel; LANES], [i as f32; LANES], [j as f32; LANES]);
+                ls = iota.map(|l| s + l);
+                lsx.copy_from_slice(&tx[k..k + LANES]);
+                lsy.copy_from_slice(&ty[k..k + LANES]);
+                s += LANES as u32;
                 if s == spp {
-                    (s, sx, sy) = (0, 0, 0);
+                    s = 0;
                     if i + 1 < region.x1 {
                         (i, pixel) = (i + 1, pixel + 1);
                     } else {
                         (i, j) = (region.x0, j + 1);
                         pixel = j * nx + i;
+                    }
+                }
+            } else if full && spp == 1 && i as usize + LANES <= region.x1 as usize {
+                // One sample per pixel, the group's 8 pixels on one row of the region.
+                lp = iota.map(|l| pixel + l);
+                li = iota.map(|l| (i + l) as f32);
+                lj = [j as f32; LANES];
+                (lsx, lsy) = ([tx[0]; LANES], [ty[0]; LANES]);
+                (i, pixel) = (i + LANES as u32, pixel + LANES as u32);
+                if i == region.x1 {
+                    (i, j) = (region.x0, j + 1);
+                    pixel = j * nx + i;
+                }
+            } else {
+                for l in 0..out.len() {
+                    (lp[l], ls[l], li[l], lj[l]) = (pixel, s, i as f32, j as f32);
+                    (lsx[l], lsy[l]) = (tx[s as usize], ty[s as usize]);
+                    // The next slot: the next sample, or the next pixel of the region (row-major).
+                    s += 1;
+                    if s == spp {
+                        s = 0;
+                        if i + 1 < region.x1 {
+                            (i, pixel) = (i + 1, pixel + 1);
+                        } else {
+                            (i, j) = (region.x0, j + 1);
+                            pixel = j * nx + i;
+                        }
                     }
                 }
             }
@@ -127,9 +159,7 @@ impl Kernel for CameraKernel<'_> {
                 let rcp = 1.0 / (px * px + py * py + pz * pz).sqrt();
                 (d[0][l], d[1][l], d[2][l]) = (px * rcp, py * rcp, pz * rcp);
             }
-            for (l, o) in out.iter_mut().enumerate() {
-                *o = Vec3::new(d[0][l], d[1][l], d[2][l]);
-            }
+            store3(&d, out);
         }
     }
 }
@@ -156,6 +186,10 @@ fn generate_at(
 ) {
     let n = wave.len();
     let strata = Strata::new(wave.samples);
+    let k = strata.k.max(1);
+    let (stratum_x, stratum_y): (Vec<f32>, Vec<f32>) = (0..wave.samples.max(1))
+        .map(|s| ((s % k) as f32, (s / k) as f32))
+        .unzip();
     out.direction.clear();
     out.direction.resize(n, Vec3::ZERO);
     out.direction
@@ -167,6 +201,8 @@ fn generate_at(
                 image,
                 wave,
                 strata: &strata,
+                stratum_x: &stratum_x,
+                stratum_y: &stratum_y,
                 first: (c * MIN_CHUNK) as u32,
                 direction,
             };

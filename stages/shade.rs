@@ -26,6 +26,7 @@ use crate::frame::Light;
 use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::split_by_counts;
+use crate::queue::lanes::load3;
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, SampleSlot, ShadowQueue};
 use crate::scene::{Material, Scene};
 use crate::simd::{Kernel, Level, dispatch};
@@ -306,6 +307,17 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
                     shading: &mut *shading,
                 },
             );
+            if settings.shadows {
+                // Ambient only (the lights come through shadow rays): `shade_hit`'s operations
+                // on the row's material, without building its `Surface`.
+                let materials = world.materials();
+                for (k, e) in emitted.iter_mut().enumerate() {
+                    let m = &materials[material[k] as usize];
+                    let i = r.start + k;
+                    *e = (weight[i] * (1.0 - m.alpha)) * (m.ka * settings.ambient);
+                }
+                return;
+            }
             for (k, e) in emitted.iter_mut().enumerate() {
                 let s = Surface {
                     point: point[k],
@@ -349,10 +361,10 @@ impl HitLanes {
         rows: Range<usize>,
     ) -> Self {
         let mut x = HitLanes {
-            p: [[0.0; LANES]; 3],
-            n: [[0.0; LANES]; 3],
-            d: [[0.0; LANES]; 3],
-            w: [[0.0; LANES]; 3],
+            p: load3(&hits.point[rows.clone()]),
+            n: load3(&hits.normal[rows.clone()]),
+            d: load3(&hits.direction[rows.clone()]),
+            w: load3(&hits.weight[rows.clone()]),
             kd: [[0.0; LANES]; 3],
             ks: [[0.0; LANES]; 3],
             exponent: [0.0; LANES],
@@ -360,19 +372,21 @@ impl HitLanes {
             spec: [false; LANES],
             smooth: [false; LANES],
         };
-        for (l, h) in rows.enumerate() {
+        for (l, h) in rows.clone().enumerate() {
             let m = &materials[hits.material[h] as usize];
             for k in 0..3 {
-                x.p[k][l] = hits.point[h][k];
-                x.n[k][l] = hits.normal[h][k];
-                x.d[k][l] = hits.direction[h][k];
-                x.w[k][l] = hits.weight[h][k];
                 x.kd[k][l] = m.kd[k];
                 x.ks[k][l] = m.ks[k];
             }
             (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
             x.spec[l] = specular && m.has_specular();
-            x.smooth[l] = hits.shading[h] != hits.normal[h];
+        }
+        let shading = load3(&hits.shading[rows]);
+        for l in 0..LANES {
+            let same = (shading[0][l] == x.n[0][l])
+                & (shading[1][l] == x.n[1][l])
+                & (shading[2][l] == x.n[2][l]);
+            x.smooth[l] = !same;
         }
         x
     }
@@ -476,19 +490,30 @@ impl Kernel for RadianceKernel<'_, '_> {
         for g in (start..end).step_by(LANES) {
             let rows = g..(g + LANES).min(end);
             let x = HitLanes::load(self.hits, self.materials, self.specular, rows.clone());
+            let smooth = x.smooth.iter().any(|&s| s);
             for (li, light) in self.lights.iter().enumerate() {
                 let r = x.radiance(light);
-                for (l, h) in rows.clone().enumerate() {
-                    let mut v = Vec3::new(r[0][l], r[1][l], r[2][l]);
-                    if x.smooth[l] {
-                        let m = &self.materials[self.hits.material[h] as usize];
-                        let (d, w) = (self.hits.direction[h], self.hits.weight[h]);
-                        let (p, n) = (self.hits.point[h], self.hits.normal[h]);
-                        let surface = (p, n, self.hits.shading[h]);
-                        v = shadow_radiance(light, m, self.specular, (d, w), surface);
+                if smooth {
+                    for (l, h) in rows.clone().enumerate() {
+                        let mut v = Vec3::new(r[0][l], r[1][l], r[2][l]);
+                        if x.smooth[l] {
+                            let m = &self.materials[self.hits.material[h] as usize];
+                            let (d, w) = (self.hits.direction[h], self.hits.weight[h]);
+                            let (p, n) = (self.hits.point[h], self.hits.normal[h]);
+                            let surface = (p, n, self.hits.shading[h]);
+                            v = shadow_radiance(light, m, self.specular, (d, w), surface);
+                        }
+                        kept += usize::from(v != Vec3::ZERO);
+                        self.out[(h - start) * per_hit + li] = v;
                     }
-                    kept += usize::from(v != Vec3::ZERO);
-                    self.out[(h - start) * per_hit + li] = v;
+                    continue;
+                }
+                // No smooth lane: the lanes are the rows' values. Stored a component at a time
+                // (a whole `Vec3` built on the stack and copied stalls on store forwarding).
+                for (l, h) in rows.clone().enumerate() {
+                    kept += usize::from((r[0][l] != 0.0) | (r[1][l] != 0.0) | (r[2][l] != 0.0));
+                    let o = &mut self.out[(h - start) * per_hit + li];
+                    (o.x, o.y, o.z) = (r[0][l], r[1][l], r[2][l]);
                 }
             }
         }
@@ -536,12 +561,7 @@ impl Kernel for ShadowRayKernel<'_, '_> {
         let light = &self.lights[0];
         for g in (start..end).step_by(LANES) {
             let rows = g..(g + LANES).min(end);
-            let mut spawn = [[0.0f32; LANES]; 3];
-            for (l, h) in rows.clone().enumerate() {
-                for (k, lane) in spawn.iter_mut().enumerate() {
-                    lane[l] = self.hits.spawn[h][k];
-                }
-            }
+            let spawn = load3(&self.hits.spawn[rows.clone()]);
             let (dir, t) = shadow_rays8(&spawn, light);
             for (l, h) in rows.enumerate() {
                 let value = self.radiance[h - start];

@@ -16,6 +16,7 @@
 pub mod columns;
 pub mod compact;
 pub mod hit;
+pub mod lanes;
 pub mod ray;
 pub mod shadow;
 

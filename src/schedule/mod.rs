@@ -19,12 +19,14 @@
 pub mod observer;
 pub mod stage;
 
+use std::cell::RefCell;
+use std::collections::BTreeMap;
 use std::fmt;
 use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use glam::Vec3;
-use rayon::prelude::*;
 
 use crate::film::{Film, PixelSink, SampleBuffer, resolve_wave};
 use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, ShadowQueue};
@@ -334,10 +336,10 @@ pub fn render_observed(
 /// of the [`Pipeline`], each of that depth's stages in order (`trace_wave`) — shade and shadow
 /// once per [`ShadowPass`] of at most `options.shadow_rows` shadow rays. When the observer
 /// [watches stages](Observer::watches_stages) (or on one thread) waves are traced one at a time,
-/// each kernel split over the threads; otherwise each thread traces whole waves, a batch of
-/// `WAVES_PER_THREAD` waves per thread at a time, and the batch's waves go to the sink in
+/// each kernel split over the threads; otherwise each thread traces whole waves, taking the next
+/// wave as it finishes one, with every kernel on that thread, and the waves reach the sink in
 /// order. The image is the same either way (every kernel is deterministic). Stops early, after a
-/// wave (or a batch), when the sink no longer [accepts](PixelSink::accepts) pixels. The sink
+/// wave, when the sink no longer [accepts](PixelSink::accepts) pixels. The sink
 /// receives the pixels of [`RenderOptions::region_of`] the scene, row-major within the region.
 pub fn render_into(
     scene: &Scene,
@@ -371,7 +373,12 @@ pub fn render_into(
             observer,
         );
     };
-    if observer.watches_stages() || threads == 1 {
+    let pools = if observer.watches_stages() || threads == 1 {
+        None
+    } else {
+        wave_pools(threads)
+    };
+    let Some(pools) = pools else {
         // One wave at a time, each stage's kernels over all threads; observers see every call.
         let mut ws = WaveQueues::default();
         for wave in waves(scene, options) {
@@ -384,49 +391,87 @@ pub fn render_into(
             }
         }
         return;
-    }
-    // Several waves at once, each traced whole by one thread on a set of queues taken from a
-    // pool (kept warm in its cache) and given back; threads take waves as they finish, and the
-    // waves of a batch reach the sink in order.
-    let pool: Mutex<Vec<WaveQueues>> = Mutex::new(vec![]);
-    let take = || pool.lock().map(|mut p| p.pop()).unwrap_or(None);
-    let give = |ws: WaveQueues| {
-        if let Ok(mut p) = pool.lock() {
-            p.push(ws);
-        }
     };
-    let mut pixels: Vec<Vec<Vec3>> = vec![];
-    let mut all = waves(scene, options);
-    loop {
-        let batch: Vec<Wave> = all.by_ref().take(WAVES_PER_THREAD * threads).collect();
-        if batch.is_empty() {
-            break;
-        }
-        pixels.resize_with(batch.len(), Vec::new);
-        pixels[..batch.len()]
-            .par_iter_mut()
-            .zip(&batch)
-            .with_max_len(1)
-            .for_each(|(px, wave)| {
-                let mut ws = take().unwrap_or_default();
-                trace(wave, &mut ws, &mut ());
-                std::mem::swap(px, &mut ws.pixels);
-                give(ws);
+    // Several waves at once: each worker traces whole waves, taken in order from a shared
+    // counter, on its own queues (kept warm in its core's cache), inside its own one-thread pool
+    // so the kernels run on that thread unsplit (no stealing of another wave's chunks). The
+    // calling thread hands finished waves to the sink in wave order (a reorder buffer).
+    let next = Mutex::new(waves(scene, options).enumerate());
+    let stop = AtomicBool::new(false);
+    let (send, receive) = crossbeam_channel::unbounded::<(usize, Wave, Vec<Vec3>)>();
+    std::thread::scope(|scope| {
+        for pool in &pools {
+            let send = send.clone();
+            let (next, stop, trace) = (&next, &stop, &trace);
+            scope.spawn(move || {
+                pool.install(|| {
+                    WAVE_QUEUES.with_borrow_mut(|ws| {
+                        while !stop.load(Ordering::Relaxed) {
+                            let Some((i, wave)) = next.lock().ok().and_then(|mut w| w.next())
+                            else {
+                                break;
+                            };
+                            trace(&wave, ws, &mut ());
+                            if send.send((i, wave, ws.pixels.clone())).is_err() {
+                                break;
+                            }
+                        }
+                    });
+                });
             });
-        for (px, wave) in pixels.iter().zip(&batch) {
-            sink.put(PixelIndex(wave.first), px);
-            done += u64::from(wave.pixels);
-            observer.wave_done(done, total);
         }
-        if !sink.accepts() {
-            break;
+        drop(send);
+        let mut pending = BTreeMap::new();
+        let mut expected = 0;
+        for (i, wave, px) in receive.iter() {
+            pending.insert(i, (wave, px));
+            while let Some((wave, px)) = pending.remove(&expected) {
+                sink.put(PixelIndex(wave.first), &px);
+                done += u64::from(wave.pixels);
+                observer.wave_done(done, total);
+                expected += 1;
+                if !sink.accepts() {
+                    stop.store(true, Ordering::Relaxed);
+                    return;
+                }
+            }
         }
+    });
+    if let Ok(mut idle) = WAVE_POOLS.lock() {
+        idle.extend(pools);
     }
 }
 
-/// Waves per thread in a batch of the wave-parallel path: threads take the batch's waves as they
-/// finish (a slow or descheduled thread holds up only the end of a batch).
-const WAVES_PER_THREAD: usize = 8;
+/// One-thread pools of the wave-parallel path, idle between renders: a render takes one per
+/// thread and gives them back, so their threads (and the queues each keeps in
+/// [`WAVE_QUEUES`], warm in its cache) outlive the render.
+static WAVE_POOLS: Mutex<Vec<rayon::ThreadPool>> = Mutex::new(Vec::new());
+
+thread_local! {
+    /// The queues a wave-parallel worker traces its waves on, kept across waves and renders.
+    static WAVE_QUEUES: RefCell<WaveQueues> = RefCell::new(WaveQueues::default());
+}
+
+/// `threads` one-thread pools, idle ones first, new ones built as needed; `None` if a pool
+/// cannot be built (the render then traces one wave at a time).
+fn wave_pools(threads: usize) -> Option<Vec<rayon::ThreadPool>> {
+    let mut pools = WAVE_POOLS
+        .lock()
+        .map(|mut idle| {
+            let keep = idle.len().saturating_sub(threads);
+            idle.split_off(keep)
+        })
+        .unwrap_or_default();
+    while pools.len() < threads {
+        pools.push(
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(1)
+                .build()
+                .ok()?,
+        );
+    }
+    Some(pools)
+}
 
 /// Traces one wave: each depth of the pipeline, each of its stages in order (shade and shadow
 /// once per [`ShadowPass`]), then resolves the wave's samples into `ws.pixels`.

@@ -20,6 +20,7 @@ use super::World;
 use crate::frame::{Plane, Sphere};
 use crate::geometry::offset::gamma;
 use crate::queue::PrimId;
+use crate::queue::lanes::{load1, load3, store3};
 use crate::scene::OffsetMethod;
 use crate::simd::{Kernel, Level, dispatch};
 
@@ -39,15 +40,11 @@ impl Rays8 {
     #[inline(always)]
     fn load(origins: &[Vec3], dirs: &[Vec3], t_max: &[f32]) -> Rays8 {
         let mut r = Rays8 {
-            o: [[0.0; LANES]; 3],
-            d: [[0.0; LANES]; 3],
+            o: load3(origins),
+            d: load3(dirs),
             t_max: [0.0; LANES],
         };
-        for (l, ((o, d), t)) in origins.iter().zip(dirs).zip(t_max).enumerate() {
-            for k in 0..3 {
-                r.o[k][l] = o[k];
-                r.d[k][l] = d[k];
-            }
+        for (l, t) in t_max.iter().take(LANES).enumerate() {
             r.t_max[l] = *t;
         }
         r
@@ -60,6 +57,9 @@ impl Rays8 {
 /// negative or NaN (every lane misses: the roots' square root and divisions are skipped).
 #[inline(always)]
 fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], [bool; LANES])> {
+    if misses8(r, s) {
+        return None;
+    }
     let c = [s.center.x as f64, s.center.y as f64, s.center.z as f64];
     let rr = s.radius as f64 * s.radius as f64;
     let mut a = [0.0f64; LANES];
@@ -102,6 +102,39 @@ fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], 
         t_out[l] = t;
     }
     Some((t_out, hit))
+}
+
+/// Margin of [`misses8`], relative to `|o − c|² + r²`: f32 rounding moves the squared distance
+/// from the centre to a ray's line by at most a few tens of ulps of that sum (`2^-24` each), far
+/// below this.
+const MISS_MARGIN: f32 = 1e-4;
+
+/// A conservative f32 pre-test of [`sphere8`]: true only when every lane's line passes farther
+/// from the centre than the radius by more than [`MISS_MARGIN`] — then the f64 discriminant is
+/// negative in every lane and `sphere8` returns `None`, so skipping it changes no bit. Any doubt
+/// (a short group's empty lanes, a tiny or huge direction, a tiny radius, NaN or infinity, a
+/// line near the sphere) answers false and the f64 test decides.
+#[inline(always)]
+fn misses8(r: &Rays8, s: &Sphere) -> bool {
+    let rr = s.radius * s.radius;
+    if !(rr > 1e-30 && rr < 1e30) {
+        return false;
+    }
+    let c = s.center;
+    let mut miss = true;
+    for l in 0..LANES {
+        let f = [r.o[0][l] - c.x, r.o[1][l] - c.y, r.o[2][l] - c.z];
+        let d = [r.d[0][l], r.d[1][l], r.d[2][l]];
+        let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let b = f[0] * d[0] + f[1] * d[1] + f[2] * d[2];
+        let k = b / a;
+        let line = [f[0] - k * d[0], f[1] - k * d[1], f[2] - k * d[2]];
+        let ll = line[0] * line[0] + line[1] * line[1] + line[2] * line[2];
+        let ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
+        let margin = MISS_MARGIN * (ff + rr);
+        miss &= (a > 1e-10) & (a < 1e10) & (ll - rr > margin);
+    }
+    miss
 }
 
 /// [`crate::geometry::plane::intersect`] on 8 lanes against `best`.
@@ -310,9 +343,9 @@ impl Surfaces<'_, '_> {
     fn group(&mut self, start: usize, end: usize) {
         let last = self.prims.len() - 1;
         let (g2, g4, g5) = (gamma(2), gamma(4), gamma(5));
-        let mut o = [[0.0f32; LANES]; 3];
-        let mut d = [[0.0f32; LANES]; 3];
-        let mut t = [0.0f32; LANES];
+        let o = load3(&self.origins[start..end]);
+        let d = load3(&self.dirs[start..end]);
+        let t = load1(&self.t[start..end], 0.0);
         let mut c = [[0.0f32; LANES]; 3];
         let mut nn = [[0.0f32; LANES]; 3];
         let mut radius = [0.0f32; LANES];
@@ -321,12 +354,10 @@ impl Surfaces<'_, '_> {
         for (l, i) in (start..end).enumerate() {
             let e = &self.prims[(self.prim[i].0 as usize).min(last)];
             for k in 0..3 {
-                o[k][l] = self.origins[i][k];
-                d[k][l] = self.dirs[i][k];
                 c[k][l] = e.centre[k];
                 nn[k][l] = e.normal[k];
             }
-            (t[l], radius[l], sphere[l], material[l]) = (self.t[i], e.radius, e.sphere, e.material);
+            (radius[l], sphere[l], material[l]) = (e.radius, e.sphere, e.material);
         }
         let mut point = [[0.0f32; LANES]; 3];
         let mut normal = [[0.0f32; LANES]; 3];
@@ -369,14 +400,11 @@ impl Surfaces<'_, '_> {
                 spawn[k][l] = if finite { po[k] } else { pt[k] };
             }
         }
-        for (l, i) in (start..end).enumerate() {
-            let col = |x: &[[f32; LANES]; 3]| Vec3::new(x[0][l], x[1][l], x[2][l]);
-            self.out.point[i] = col(&point);
-            self.out.normal[i] = col(&normal);
-            self.out.shading[i] = col(&normal);
-            self.out.spawn[i] = col(&spawn);
-            self.out.material[i] = material[l];
-        }
+        store3(&point, &mut self.out.point[start..end]);
+        store3(&normal, &mut self.out.normal[start..end]);
+        store3(&normal, &mut self.out.shading[start..end]);
+        store3(&spawn, &mut self.out.spawn[start..end]);
+        self.out.material[start..end].copy_from_slice(&material[..end - start]);
     }
 }
 
@@ -492,6 +520,7 @@ impl World {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::sphere;
     use crate::sampling::Rng;
     use crate::scene::builtin::spheres;
     use crate::world::World;
@@ -536,6 +565,78 @@ mod tests {
     fn closest_and_occluded_match_the_scalar_tests_bit_for_bit_at_every_level() {
         let world = World::load(&spheres()).unwrap();
         let (o, d, t) = rays(10_007);
+        batches_match_scalar(&world, &o, &d, &t);
+    }
+
+    /// Rays grazing each sphere of scene A, 8 per group aimed at the same relative distance
+    /// from the centre (1 ± 1e-7 … 1e-2 radii, the pre-test's margin among them).
+    fn grazing_rays() -> (Vec<Vec3>, Vec<Vec3>, Vec<f32>) {
+        let world = World::load(&spheres()).unwrap();
+        let mut rng = Rng(5);
+        let (mut o, mut d, mut t) = (vec![], vec![], vec![]);
+        let scales = [
+            0.99,
+            0.9999,
+            0.999_999,
+            1.0,
+            1.000_000_1,
+            1.000_001,
+            1.000_01,
+            1.000_03,
+            1.000_05,
+            1.0001,
+            1.0002,
+            1.0005,
+            1.001,
+            1.01,
+        ];
+        for s in world.spheres() {
+            for scale in scales {
+                for _ in 0..16 {
+                    let origin = Vec3::new(
+                        rng.range(-10.0, 10.0),
+                        rng.range(-1.0, 6.0),
+                        rng.range(-15.0, 2.0),
+                    );
+                    let to_c = s.center - origin;
+                    let side = to_c
+                        .cross(Vec3::new(rng.range(-1.0, 1.0), 1.0, rng.range(-1.0, 1.0)))
+                        .normalize();
+                    let target = s.center + side * s.radius * scale;
+                    o.push(origin);
+                    d.push((target - origin).normalize());
+                    t.push(f32::INFINITY);
+                }
+            }
+        }
+        (o, d, t)
+    }
+
+    #[test]
+    fn grazing_rays_match_the_scalar_tests_and_the_pre_test_skips_only_misses() {
+        let world = World::load(&spheres()).unwrap();
+        let (o, d, t) = grazing_rays();
+        batches_match_scalar(&world, &o, &d, &t);
+        let mut skipped = 0;
+        for g in (0..o.len()).step_by(LANES) {
+            let r = Rays8::load(&o[g..g + LANES], &d[g..g + LANES], &t[g..g + LANES]);
+            for s in world.spheres() {
+                if misses8(&r, s) {
+                    skipped += 1;
+                    for i in g..g + LANES {
+                        let hit = sphere::intersect_stable(o[i], d[i], s.center, s.radius, t[i]);
+                        assert_eq!(hit, None, "ray {i} skipped but hits {s:?}");
+                    }
+                }
+            }
+        }
+        // Groups aimed well outside (and far from the other spheres) are skipped.
+        assert!(skipped > 0);
+    }
+
+    /// Runs [`Closest`] and [`Occluded`] over the rays at every supported level and checks each
+    /// ray against the scalar queries, bit for bit.
+    fn batches_match_scalar(world: &World, o: &[Vec3], d: &[Vec3], t: &[f32]) {
         for level in Level::supported() {
             let mut out_t = vec![0.0; o.len()];
             let mut out_prim = vec![PrimId(7); o.len()];
@@ -544,9 +645,9 @@ mod tests {
                 Closest {
                     spheres: world.spheres(),
                     planes: world.planes(),
-                    origins: &o,
-                    dirs: &d,
-                    t_max: &t,
+                    origins: o,
+                    dirs: d,
+                    t_max: t,
                     out_t: &mut out_t,
                     out_prim: &mut out_prim,
                 },
@@ -557,9 +658,9 @@ mod tests {
                 Occluded {
                     spheres: world.spheres(),
                     planes: world.planes(),
-                    origins: &o,
-                    dirs: &d,
-                    t_max: &t,
+                    origins: o,
+                    dirs: d,
+                    t_max: t,
                     out: &mut occ,
                 },
             );

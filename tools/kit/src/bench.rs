@@ -304,6 +304,21 @@ pub fn median_of(repeat: usize, mut f: impl FnMut()) -> f64 {
     t[t.len() / 2]
 }
 
+/// Median seconds of `repeat` runs (at least one) of each of `a` and `b`, without warm-up, the
+/// runs alternating (a, b, a, b, …) so a change in the machine's load shows in both medians.
+pub fn interleaved_medians(repeat: usize, mut a: impl FnMut(), mut b: impl FnMut()) -> (f64, f64) {
+    let (mut ta, mut tb) = (vec![], vec![]);
+    for _ in 0..repeat.max(1) {
+        ta.push(seconds(&mut a));
+        tb.push(seconds(&mut b));
+    }
+    let median = |mut t: Vec<f64>| {
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    };
+    (median(ta), median(tb))
+}
+
 fn seconds(f: &mut impl FnMut()) -> f64 {
     let start = Instant::now();
     f();
@@ -398,8 +413,9 @@ pub struct Timing {
     /// Scene name.
     pub scene: String,
     /// What was timed: `frame` (median of R renders), `baseline_recursive` (the recursive f32
-    /// tracer of [`crate::baseline`] on the same scene and pool, median of R), `load_obj`, `tree`
-    /// (as loaded), `build_sah` (best of R), `embree_build` (best of R).
+    /// tracer of [`crate::baseline`] on the same scene and pool, median of R runs alternating
+    /// with the frame's), `load_obj`, `tree` (as loaded), `build_sah` (best of R),
+    /// `embree_build` (best of R).
     pub timing: String,
     /// Worker threads.
     pub threads: usize,
@@ -703,9 +719,16 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     }
 
     // The frame as `render` traces it: no stage observer, so one wave per thread at once.
-    let frame = median_of(repeat, || {
-        render_observed(scene, &world, &RenderOptions::default(), ());
-    });
+    // The frame and the recursive baseline alternate, so both medians see the same machine.
+    let (frame, baseline) = interleaved_medians(
+        repeat,
+        || {
+            render_observed(scene, &world, &RenderOptions::default(), ());
+        },
+        || {
+            std::hint::black_box(crate::baseline::render_recursive(scene, &world));
+        },
+    );
     if world.triangles().is_none() {
         // Queue traffic counted on one more, untimed, render (the meter watches every stage).
         let mut traffic = TrafficMeter::default();
@@ -723,9 +746,6 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     report
         .timings
         .push(timing(scene, "frame", threads, frame, repeat));
-    let baseline = median_of(repeat, || {
-        std::hint::black_box(crate::baseline::render_recursive(scene, &world));
-    });
     report.timings.push(timing(
         scene,
         "baseline_recursive",

@@ -1,0 +1,102 @@
+//! `Vec3` rows in and out of lanes: 8 rows of a `Vec3` column as x, y and z arrays (what the
+//! SIMD kernels compute on), and back.
+//!
+//! A full group of 8 rows is 24 contiguous `f32`s, read (or written) as one fixed-size array, so
+//! the compiler turns the deinterleave into vector loads and shuffles rather than 24 scalar
+//! stores into a stack array re-read as vectors (which stalls on store forwarding); a shorter
+//! tail goes row by row. Pure data movement: the values are the rows' bits.
+
+// Lane loops index several parallel `[_; LANES]` arrays by lane: an index is clearer than zips.
+#![allow(clippy::needless_range_loop)]
+
+use glam::Vec3;
+
+/// Rows per lane group.
+pub const LANES: usize = 8;
+
+/// x, y and z of up to [`LANES`] rows, lane `l` holding row `l`.
+pub type Lanes3 = [[f32; LANES]; 3];
+
+/// The rows (at most [`LANES`]) in lanes; lanes past `rows.len()` are zero.
+#[inline(always)]
+pub fn load3(rows: &[Vec3]) -> Lanes3 {
+    let mut x = [[0.0; LANES]; 3];
+    if let Ok(full) = <&[Vec3; LANES]>::try_from(rows) {
+        let flat: &[f32; 3 * LANES] = bytemuck::cast_ref(full);
+        for l in 0..LANES {
+            for k in 0..3 {
+                x[k][l] = flat[3 * l + k];
+            }
+        }
+    } else {
+        for (l, v) in rows.iter().take(LANES).enumerate() {
+            for k in 0..3 {
+                x[k][l] = v[k];
+            }
+        }
+    }
+    x
+}
+
+/// Writes the first `rows.len()` lanes (at most [`LANES`]) to `rows`.
+#[inline(always)]
+pub fn store3(x: &Lanes3, rows: &mut [Vec3]) {
+    if let Ok(full) = <&mut [Vec3; LANES]>::try_from(&mut *rows) {
+        let flat: &mut [f32; 3 * LANES] = bytemuck::cast_mut(full);
+        for l in 0..LANES {
+            for k in 0..3 {
+                flat[3 * l + k] = x[k][l];
+            }
+        }
+    } else {
+        for (l, v) in rows.iter_mut().take(LANES).enumerate() {
+            *v = Vec3::new(x[0][l], x[1][l], x[2][l]);
+        }
+    }
+}
+
+/// Values of a scalar column (at most [`LANES`] rows) in lanes; lanes past `rows.len()` hold
+/// `fill`.
+#[inline(always)]
+pub fn load1<T: Copy>(rows: &[T], fill: T) -> [T; LANES] {
+    if let Ok(full) = <&[T; LANES]>::try_from(rows) {
+        *full
+    } else {
+        let mut x = [fill; LANES];
+        for (l, v) in rows.iter().take(LANES).enumerate() {
+            x[l] = *v;
+        }
+        x
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn rows_round_trip_through_lanes_full_and_partial() {
+        for n in 0..=LANES {
+            let rows: Vec<Vec3> = (0..n)
+                .map(|i| Vec3::new(i as f32, -(i as f32) - 0.5, 100.0 + i as f32))
+                .collect();
+            let x = load3(&rows);
+            for l in 0..LANES {
+                let want = rows.get(l).copied().unwrap_or(Vec3::ZERO);
+                assert_eq!(
+                    [x[0][l], x[1][l], x[2][l]],
+                    want.to_array(),
+                    "n {n} lane {l}"
+                );
+            }
+            let ids: Vec<u32> = (0..n as u32).collect();
+            let l1 = load1(&ids, 99);
+            for l in 0..LANES {
+                assert_eq!(l1[l], if l < n { l as u32 } else { 99 });
+            }
+            let mut back = vec![Vec3::splat(7.0); n];
+            store3(&x, &mut back);
+            assert_eq!(back, rows);
+        }
+    }
+}
