@@ -370,11 +370,14 @@ fn lit_material(m: &Material) -> LitMaterial {
 
 impl HitLanes {
     /// Hits `rows` (at most [`LANES`]); `materials` holds every material's [`LitMaterial`].
+    /// `meshes`: the world has triangles, whose shading normals may differ from the geometric
+    /// ones (analytic hits' never do: their `smooth` lanes are false without reading `shading`).
     #[inline(always)]
     fn load(
         hits: &ShadedHits<'_>,
         materials: &[LitMaterial],
         specular: bool,
+        meshes: bool,
         rows: Range<usize>,
     ) -> Self {
         let mut x = HitLanes {
@@ -401,6 +404,9 @@ impl HitLanes {
             // `Material::has_specular`: a non-zero `ks`.
             let ks = (x.ks[0][l] != 0.0) | (x.ks[1][l] != 0.0) | (x.ks[2][l] != 0.0);
             x.spec[l] = specular & ks;
+        }
+        if !meshes {
+            return x;
         }
         let shading = load3(&hits.shading[rows]);
         for l in 0..LANES {
@@ -444,7 +450,9 @@ impl HitLanes {
         }
         let mut power = [0.0f32; LANES];
         for l in 0..LANES {
-            if self.spec[l] && valid[l] {
+            // A lane facing away from the light (or NaN) stores zero below whatever its power:
+            // `powf` runs only where its value is used.
+            if self.spec[l] & valid[l] & (n_dot_l[l] > 0.0) {
                 power[l] = n_dot_h[l].powf(self.exponent[l]);
             }
         }
@@ -498,6 +506,8 @@ struct RadianceKernel<'a, 'h> {
     /// `materials` as [`LitMaterial`] rows.
     lit: &'a [LitMaterial],
     specular: bool,
+    /// The world has triangles (see [`HitLanes::load`]).
+    meshes: bool,
     lights: &'a [Light],
     hits_range: Range<usize>,
     out: &'a mut [Vec3],
@@ -512,7 +522,13 @@ impl Kernel for RadianceKernel<'_, '_> {
         let Range { start, end } = self.hits_range;
         for g in (start..end).step_by(LANES) {
             let rows = g..(g + LANES).min(end);
-            let x = HitLanes::load(self.hits, self.lit, self.specular, rows.clone());
+            let x = HitLanes::load(
+                self.hits,
+                self.lit,
+                self.specular,
+                self.meshes,
+                rows.clone(),
+            );
             let smooth = x.smooth.iter().any(|&s| s);
             for (li, light) in self.lights.iter().enumerate() {
                 let r = x.radiance(light);
@@ -645,6 +661,7 @@ fn spawn_shadow_rays_at(
     scratch.materials.clear();
     scratch.materials.extend(materials.iter().map(lit_material));
     let lit = &scratch.materials;
+    let meshes = world.triangles().is_some();
     let hits = &hits;
     scratch
         .radiance
@@ -657,6 +674,7 @@ fn spawn_shadow_rays_at(
                 materials,
                 lit,
                 specular: settings.specular,
+                meshes,
                 lights,
                 hits_range: first..first + out.len() / per_hit,
                 out,
