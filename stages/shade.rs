@@ -267,8 +267,6 @@ pub struct ShadeScratch {
     radiance: Vec<Vec3>,
     /// Kept rows (non-zero radiance) of each chunk of hits.
     counts: Vec<usize>,
-    /// The materials as the radiance kernel reads them.
-    materials: Vec<LitMaterial>,
 }
 
 /// Shades every hit: fills its surface columns and `emitted` (one row per hit). Each chunk of
@@ -284,13 +282,6 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
     hits.emitted.resize(n, Vec3::ZERO);
     let (prim, origin, direction, t, weight) =
         (hits.prim, hits.origin, hits.direction, hits.t, hits.weight);
-    // Per material, the two factors of the ambient-only emitted radiance: `1 − α` and `ka·La`.
-    let ambient: Vec<(f32, Vec3)> = world
-        .materials()
-        .iter()
-        .map(|m| (1.0 - m.alpha, m.ka * settings.ambient))
-        .collect();
-    let ambient = &ambient;
     (
         hits.point.par_chunks_mut(MIN_CHUNK),
         hits.normal.par_chunks_mut(MIN_CHUNK),
@@ -319,10 +310,11 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
             if settings.shadows {
                 // Ambient only (the lights come through shadow rays): `shade_hit`'s operations
                 // on the row's material, without building its `Surface`.
-                let rows = emitted.iter_mut().zip(&*material).zip(&weight[r]);
-                for ((e, &m), &w) in rows {
-                    let (keep, ambient) = ambient[m as usize];
-                    *e = (w * keep) * ambient;
+                let materials = world.materials();
+                for (k, e) in emitted.iter_mut().enumerate() {
+                    let m = &materials[material[k] as usize];
+                    let i = r.start + k;
+                    *e = (weight[i] * (1.0 - m.alpha)) * (m.ka * settings.ambient);
                 }
                 return;
             }
@@ -359,23 +351,14 @@ struct HitLanes {
     smooth: [bool; LANES],
 }
 
-/// What the radiance kernel reads of a material, in one 32-byte row: `kd`, `ks`, `p`, `α`.
-type LitMaterial = [f32; 8];
-
-/// `m`'s [`LitMaterial`] row.
-fn lit_material(m: &Material) -> LitMaterial {
-    let (kd, ks) = (m.kd, m.ks);
-    [kd.x, kd.y, kd.z, ks.x, ks.y, ks.z, m.p, m.alpha]
-}
-
 impl HitLanes {
-    /// Hits `rows` (at most [`LANES`]); `materials` holds every material's [`LitMaterial`].
+    /// Hits `rows` (at most [`LANES`]).
     /// `meshes`: the world has triangles, whose shading normals may differ from the geometric
     /// ones (analytic hits' never do: their `smooth` lanes are false without reading `shading`).
     #[inline(always)]
     fn load(
         hits: &ShadedHits<'_>,
-        materials: &[LitMaterial],
+        materials: &[Material],
         specular: bool,
         meshes: bool,
         rows: Range<usize>,
@@ -392,18 +375,14 @@ impl HitLanes {
             spec: [false; LANES],
             smooth: [false; LANES],
         };
-        for (l, &m) in hits.material[rows.clone()].iter().enumerate() {
-            let m = &materials[m as usize];
+        for (l, h) in rows.clone().enumerate() {
+            let m = &materials[hits.material[h] as usize];
             for k in 0..3 {
-                x.kd[k][l] = m[k];
-                x.ks[k][l] = m[3 + k];
+                x.kd[k][l] = m.kd[k];
+                x.ks[k][l] = m.ks[k];
             }
-            (x.exponent[l], x.alpha[l]) = (m[6], m[7]);
-        }
-        for l in 0..LANES {
-            // `Material::has_specular`: a non-zero `ks`.
-            let ks = (x.ks[0][l] != 0.0) | (x.ks[1][l] != 0.0) | (x.ks[2][l] != 0.0);
-            x.spec[l] = specular & ks;
+            (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
+            x.spec[l] = specular && m.has_specular();
         }
         if !meshes {
             return x;
@@ -503,8 +482,6 @@ fn shadow_rays8(spawn: &[[f32; LANES]; 3], light: &Light) -> ([[f32; LANES]; 3],
 struct RadianceKernel<'a, 'h> {
     hits: &'a ShadedHits<'h>,
     materials: &'a [Material],
-    /// `materials` as [`LitMaterial`] rows.
-    lit: &'a [LitMaterial],
     specular: bool,
     /// The world has triangles (see [`HitLanes::load`]).
     meshes: bool,
@@ -524,7 +501,7 @@ impl Kernel for RadianceKernel<'_, '_> {
             let rows = g..(g + LANES).min(end);
             let x = HitLanes::load(
                 self.hits,
-                self.lit,
+                self.materials,
                 self.specular,
                 self.meshes,
                 rows.clone(),
@@ -658,9 +635,6 @@ fn spawn_shadow_rays_at(
     let chunk = (MIN_CHUNK / per_hit).max(1);
     scratch.radiance.resize(rows, Vec3::ZERO); // every row is overwritten
     let materials = world.materials();
-    scratch.materials.clear();
-    scratch.materials.extend(materials.iter().map(lit_material));
-    let lit = &scratch.materials;
     let meshes = world.triangles().is_some();
     let hits = &hits;
     scratch
@@ -672,7 +646,6 @@ fn spawn_shadow_rays_at(
             let kernel = RadianceKernel {
                 hits,
                 materials,
-                lit,
                 specular: settings.specular,
                 meshes,
                 lights,
