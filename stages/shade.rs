@@ -353,11 +353,14 @@ struct HitLanes {
 
 impl HitLanes {
     /// Hits `rows` (at most [`LANES`]).
+    /// `meshes`: the world has triangles, whose shading normals may differ from the geometric
+    /// ones (analytic hits' never do: their `smooth` lanes are false without reading `shading`).
     #[inline(always)]
     fn load(
         hits: &ShadedHits<'_>,
         materials: &[Material],
         specular: bool,
+        meshes: bool,
         rows: Range<usize>,
     ) -> Self {
         let mut x = HitLanes {
@@ -380,6 +383,9 @@ impl HitLanes {
             }
             (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
             x.spec[l] = specular && m.has_specular();
+        }
+        if !meshes {
+            return x;
         }
         let shading = load3(&hits.shading[rows]);
         for l in 0..LANES {
@@ -423,7 +429,9 @@ impl HitLanes {
         }
         let mut power = [0.0f32; LANES];
         for l in 0..LANES {
-            if self.spec[l] && valid[l] {
+            // A lane facing away from the light (or NaN) stores zero below whatever its power:
+            // `powf` runs only where its value is used.
+            if self.spec[l] & valid[l] & (n_dot_l[l] > 0.0) {
                 power[l] = n_dot_h[l].powf(self.exponent[l]);
             }
         }
@@ -475,6 +483,8 @@ struct RadianceKernel<'a, 'h> {
     hits: &'a ShadedHits<'h>,
     materials: &'a [Material],
     specular: bool,
+    /// The world has triangles (see [`HitLanes::load`]).
+    meshes: bool,
     lights: &'a [Light],
     hits_range: Range<usize>,
     out: &'a mut [Vec3],
@@ -489,7 +499,13 @@ impl Kernel for RadianceKernel<'_, '_> {
         let Range { start, end } = self.hits_range;
         for g in (start..end).step_by(LANES) {
             let rows = g..(g + LANES).min(end);
-            let x = HitLanes::load(self.hits, self.materials, self.specular, rows.clone());
+            let x = HitLanes::load(
+                self.hits,
+                self.materials,
+                self.specular,
+                self.meshes,
+                rows.clone(),
+            );
             let smooth = x.smooth.iter().any(|&s| s);
             for (li, light) in self.lights.iter().enumerate() {
                 let r = x.radiance(light);
@@ -619,6 +635,7 @@ fn spawn_shadow_rays_at(
     let chunk = (MIN_CHUNK / per_hit).max(1);
     scratch.radiance.resize(rows, Vec3::ZERO); // every row is overwritten
     let materials = world.materials();
+    let meshes = world.triangles().is_some();
     let hits = &hits;
     scratch
         .radiance
@@ -630,6 +647,7 @@ fn spawn_shadow_rays_at(
                 hits,
                 materials,
                 specular: settings.specular,
+                meshes,
                 lights,
                 hits_range: first..first + out.len() / per_hit,
                 out,
