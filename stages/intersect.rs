@@ -62,11 +62,16 @@ pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'
     // Every row is overwritten below: only a growing column needs filling.
     out.t.resize(n, f32::INFINITY);
     out.prim.resize(n, PrimId::NONE);
-    // Small queues in smaller chunks, so every thread gets some (answers do not depend on it);
-    // on one thread, whole chunks (the frusta find more coherent neighbours in them).
+    // On one thread, whole chunks (the frusta find more coherent neighbours in them). On
+    // several, a mesh-only world takes the whole queue at once: the kD tree regroups it once and
+    // spreads whole frusta over the threads. Other worlds: small queues in smaller chunks, so
+    // every thread gets some (answers do not depend on any of it).
     let threads = rayon::current_num_threads();
+    let mesh_only = world.spheres().is_empty() && world.planes().is_empty();
     let chunk = if threads == 1 {
         TRACE_CHUNK
+    } else if mesh_only {
+        n.max(1)
     } else {
         TRACE_CHUNK.min((n / (4 * threads)).max(MIN_CHUNK))
     };
