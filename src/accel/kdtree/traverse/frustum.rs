@@ -225,6 +225,10 @@ pub(super) fn put_scratch(scratch: Box<FrustumScratch>) {
 /// they end together, each a few tens of microseconds.
 const RUNS_PER_ITEM: usize = 4;
 
+/// Rays regrouped together when a batch is traced on several threads: the intersect stage's
+/// chunk on one thread, so that the frusta are the tiles a render traces.
+const PIECE: usize = crate::stages::intersect::TRACE_CHUNK;
+
 /// Rays from which a closest-hit batch is traced on all the threads of the current rayon pool
 /// ([`KdAccel::closest_frusta_par`]) when it has more than one.
 pub(super) const PAR_MIN: usize = 16 * WIDE;
@@ -590,7 +594,6 @@ impl KdAccel {
         }
         let o = origins[0].to_array().map(f32::to_bits);
         let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
-        self.regroup(dirs, WIDE, scratch);
         let FrustumScratch {
             key,
             order,
@@ -599,15 +602,34 @@ impl KdAccel {
             buf_tri,
             ..
         } = scratch;
+        // Regrouped piece by piece, in parallel: the tiles of a render's trace chunks.
+        key.clear();
+        key.resize(n, 0);
+        order.clear();
+        order.resize(n, 0);
+        key.par_chunks_mut(PIECE)
+            .zip(order.par_chunks_mut(PIECE))
+            .enumerate()
+            .for_each(|(c, (key, order))| {
+                let first = c * PIECE;
+                let mut s = take_scratch();
+                self.regroup(&dirs[first..first + key.len()], WIDE, &mut s);
+                key.copy_from_slice(&s.key);
+                for (o, &r) in order.iter_mut().zip(&s.order) {
+                    *o = first as u32 + r;
+                }
+                put_scratch(s);
+            });
         let (key, order) = (&key[..], &order[..]);
-        // The runs exactly as `closest_frusta` cuts them.
+        // The runs exactly as `closest_frusta` cuts them in each piece.
         runs.clear();
         let mut i = 0;
         while i < n {
             runs.push(i as u32);
             let perm = key[order[i] as usize] >> 24;
+            let stop = n.min(i + WIDE).min((i / PIECE + 1) * PIECE);
             let mut end = i + 1;
-            while end < n && end < i + WIDE && key[order[end] as usize] >> 24 == perm {
+            while end < stop && key[order[end] as usize] >> 24 == perm {
                 end += 1;
             }
             i = end;
