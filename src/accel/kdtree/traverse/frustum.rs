@@ -602,37 +602,47 @@ impl KdAccel {
             buf_tri,
             ..
         } = scratch;
-        // Regrouped piece by piece, in parallel: the tiles of a render's trace chunks.
+        // Regrouped piece by piece, in parallel: the tiles of a render's trace chunks, cut into
+        // runs exactly as `closest_frusta` cuts them.
         key.clear();
         key.resize(n, 0);
         order.clear();
         order.resize(n, 0);
-        key.par_chunks_mut(PIECE)
+        let piece_runs: Vec<Vec<u32>> = key
+            .par_chunks_mut(PIECE)
             .zip(order.par_chunks_mut(PIECE))
             .enumerate()
-            .for_each(|(c, (key, order))| {
+            .map(|(c, (key, order))| {
                 let first = c * PIECE;
+                let m = key.len();
                 let mut s = take_scratch();
-                self.regroup(&dirs[first..first + key.len()], WIDE, &mut s);
+                self.regroup(&dirs[first..first + m], WIDE, &mut s);
                 key.copy_from_slice(&s.key);
                 for (o, &r) in order.iter_mut().zip(&s.order) {
                     *o = first as u32 + r;
                 }
                 put_scratch(s);
-            });
+                let mut runs = Vec::with_capacity(m.div_ceil(WIDE) + 6);
+                let mut i = 0;
+                while i < m {
+                    runs.push((first + i) as u32);
+                    let perm = key[order[i] as usize - first] >> 24;
+                    let mut end = i + 1;
+                    while end < m
+                        && end < i + WIDE
+                        && key[order[end] as usize - first] >> 24 == perm
+                    {
+                        end += 1;
+                    }
+                    i = end;
+                }
+                runs
+            })
+            .collect();
         let (key, order) = (&key[..], &order[..]);
-        // The runs exactly as `closest_frusta` cuts them in each piece.
         runs.clear();
-        let mut i = 0;
-        while i < n {
-            runs.push(i as u32);
-            let perm = key[order[i] as usize] >> 24;
-            let stop = n.min(i + WIDE).min((i / PIECE + 1) * PIECE);
-            let mut end = i + 1;
-            while end < stop && key[order[end] as usize] >> 24 == perm {
-                end += 1;
-            }
-            i = end;
+        for r in &piece_runs {
+            runs.extend_from_slice(r);
         }
         runs.push(n as u32);
         let runs = &runs[..];
@@ -682,9 +692,19 @@ impl KdAccel {
         items.into_par_iter().for_each(|(a, b, t, tri)| {
             kernel(&runs[a..=b], t, tri);
         });
-        for ((&r, &t), &tri) in order.iter().zip(buf_t.iter()).zip(buf_tri.iter()) {
-            (out_t[r as usize], out_tri[r as usize]) = (t, tri);
-        }
+        // Each piece's answers back to its own rows.
+        out_t
+            .par_chunks_mut(PIECE)
+            .zip(out_tri.par_chunks_mut(PIECE))
+            .enumerate()
+            .for_each(|(c, (out_t, out_tri))| {
+                let r = c * PIECE..c * PIECE + out_t.len();
+                let found = buf_t[r.clone()].iter().zip(&buf_tri[r.clone()]);
+                for (&row, (&t, &tri)) in order[r.clone()].iter().zip(found) {
+                    let row = row as usize - r.start;
+                    (out_t[row], out_tri[row]) = (t, tri);
+                }
+            });
         true
     }
 
