@@ -578,6 +578,7 @@ impl KdAccel {
     /// regrouped once, its frusta traced in parallel (whole frusta, [`RUNS_PER_ITEM`] per work
     /// item) into a buffer in tracing order, then copied to their rows. Same answers and same
     /// return value as the one-thread version.
+    #[allow(clippy::too_many_arguments)]
     pub(super) fn closest_frusta_par(
         &self,
         level: Level,
