@@ -605,9 +605,8 @@ impl KdAccel {
         } = scratch;
         // Regrouped piece by piece, in parallel: the tiles of a render's trace chunks, cut into
         // runs exactly as `closest_frusta` cuts them.
-        key.clear();
+        // (Every entry of `key`, `order` and `buf_*` is written below: resized, not cleared.)
         key.resize(n, 0);
-        order.clear();
         order.resize(n, 0);
         let piece_runs: Vec<Vec<u32>> = key
             .par_chunks_mut(PIECE)
@@ -647,9 +646,7 @@ impl KdAccel {
         }
         runs.push(n as u32);
         let runs = &runs[..];
-        buf_t.clear();
         buf_t.resize(n, 0.0);
-        buf_tri.clear();
         buf_tri.resize(n, 0);
         let kernel = |runs: &[u32], out_t: &mut [f32], out_tri: &mut [u32]| {
             let k = Runs {
