@@ -56,18 +56,22 @@ pub const TRACE_CHUNK: usize = 4 * MIN_CHUNK;
 
 /// Closest hit of every ray (one row per ray). Chunks of up to [`TRACE_CHUNK`] rays go through
 /// [`World::intersect_closest_batch`] (camera rays as frusta of screen tiles, others as packets
-/// of consecutive, coherent rays).
+/// of consecutive, coherent rays); on several threads a mesh-only world's whole queue goes in
+/// one call, which spreads its frusta over the threads.
 pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
     let n = rays.origin.len();
     // Every row is overwritten below: only a growing column needs filling.
     out.t.resize(n, f32::INFINITY);
     out.prim.resize(n, PrimId::NONE);
     // On one thread, whole chunks (the frusta find more coherent neighbours in them). On
-    // several, a mesh-only world takes the whole queue at once: the kD tree regroups it once and
-    // spreads whole frusta over the threads. Other worlds: small queues in smaller chunks, so
-    // every thread gets some (answers do not depend on any of it).
+    // several, a mesh-only world with the watertight test takes the whole queue in one call: the
+    // kD tree regroups it in chunks of the same size and spreads whole frusta over the threads.
+    // Other worlds: small queues in smaller chunks, so every thread gets some (answers do not
+    // depend on any of it).
     let threads = rayon::current_num_threads();
-    let mesh_only = world.spheres().is_empty() && world.planes().is_empty();
+    let mesh_only = world.spheres().is_empty()
+        && world.planes().is_empty()
+        && world.robustness().triangle == crate::scene::TriangleTest::Watertight;
     let chunk = if threads == 1 {
         TRACE_CHUNK
     } else if mesh_only {

@@ -15,7 +15,10 @@
 //! rejects go one by one. A batch from many origins (mirror reflections: the rays of a screen
 //! tile reflected by one plane leave from a small patch of it) goes the same way while its
 //! frusta's origins stay close together ([`MAX_SPREAD`], measured over the batch's first two
-//! frusta); otherwise the caller traces it as 4-ray packets.
+//! frusta); otherwise the caller traces it as 4-ray packets. On several threads
+//! ([`KdAccel::closest_frusta_par`]) the batch is regrouped in pieces of the intersect stage's
+//! chunk size (the tiles a one-thread render traces), the frusta go to the threads a few at a
+//! time, their answers into a buffer in tracing order, then back to their rows.
 //!
 //! **Traversal** ([`KdAccel::walk_frustum`]). One node fetch per frustum; whole-frustum culling
 //! through the lane mask (a node no lane enters is never fetched, a group of lanes none of which
@@ -202,23 +205,29 @@ impl FrustumScratch {
 }
 
 thread_local! {
-    /// One scratch space per thread, reused by every batch and work item it traces.
-    static SCRATCH: std::cell::RefCell<Option<Box<FrustumScratch>>> =
-        const { std::cell::RefCell::new(None) };
+    /// Each thread's spare scratch spaces, reused by every batch and work item it traces (two
+    /// at most: a batch traced on several threads holds one while its work items on the same
+    /// thread use another).
+    static SCRATCH: std::cell::RefCell<Vec<Box<FrustumScratch>>> =
+        const { std::cell::RefCell::new(Vec::new()) };
 }
 
-/// This thread's scratch space (a new one if it has none, or lent it out). Taken out and put
-/// back ([`put_scratch`]) rather than used inside `with_borrow_mut`: a closure would be compiled
+/// A spare scratch space of this thread (a new one if it has none). Taken out and put back
+/// ([`put_scratch`]) rather than used inside `with_borrow_mut`: a closure would be compiled
 /// apart from the caller, without its SIMD level.
 pub(super) fn take_scratch() -> Box<FrustumScratch> {
     SCRATCH
-        .with_borrow_mut(Option::take)
+        .with_borrow_mut(Vec::pop)
         .unwrap_or_else(FrustumScratch::new)
 }
 
-/// Gives this thread's scratch space back (see [`take_scratch`]).
+/// Gives a scratch space back to this thread's spares (see [`take_scratch`]).
 pub(super) fn put_scratch(scratch: Box<FrustumScratch>) {
-    SCRATCH.with_borrow_mut(|cached| *cached = Some(scratch));
+    SCRATCH.with_borrow_mut(|spare| {
+        if spare.len() < 2 {
+            spare.push(scratch);
+        }
+    });
 }
 
 /// Frusta per work item of a batch traced on several threads: many more items than threads, so

@@ -162,7 +162,9 @@ impl KdAccel {
     /// whose directions agree in sign as packets. Compiled for the best SIMD level of the CPU
     /// ([`Level::current`]). Results are bit-identical to the single-ray query whatever the path
     /// and level (each lane makes exactly the single ray's decisions, see the module docs).
-    /// Panics if the slices' lengths differ.
+    /// Inside a rayon pool of several threads, a batch of 1,024 rays or more is regrouped in
+    /// pieces of [`TRACE_CHUNK`](crate::stages::intersect::TRACE_CHUNK) rays and its frusta are
+    /// traced on all the pool's threads. Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
         origins: &[Vec3],
