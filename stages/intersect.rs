@@ -56,17 +56,28 @@ pub const TRACE_CHUNK: usize = 4 * MIN_CHUNK;
 
 /// Closest hit of every ray (one row per ray). Chunks of up to [`TRACE_CHUNK`] rays go through
 /// [`World::intersect_closest_batch`] (camera rays as frusta of screen tiles, others as packets
-/// of consecutive, coherent rays).
+/// of consecutive, coherent rays); on several threads a mesh-only world's small queue goes in
+/// one call, which spreads its frusta over the threads.
 pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
     let n = rays.origin.len();
     // Every row is overwritten below: only a growing column needs filling.
     out.t.resize(n, f32::INFINITY);
     out.prim.resize(n, PrimId::NONE);
-    // Small queues in smaller chunks, so every thread gets some (answers do not depend on it);
-    // on one thread, whole chunks (the frusta find more coherent neighbours in them).
+    // On one thread, whole chunks (the frusta find more coherent neighbours in them). On
+    // several, a small queue (fewer than 4 chunks per thread) of a mesh-only world with the
+    // watertight test goes in one call: the kD tree regroups it in chunks of the same size and
+    // spreads whole frusta over the threads (measured on Sibenik's 3,951 mirror reflections, 2
+    // threads: ~1.2× four 1,024-ray chunks; on 65,536 camera rays it measured no faster than 16
+    // whole chunks). Other worlds: small queues in smaller chunks, so every thread gets some
+    // (answers do not depend on any of it).
     let threads = rayon::current_num_threads();
+    let mesh_only = world.spheres().is_empty()
+        && world.planes().is_empty()
+        && world.robustness().triangle == crate::scene::TriangleTest::Watertight;
     let chunk = if threads == 1 {
         TRACE_CHUNK
+    } else if mesh_only && n < 4 * threads * TRACE_CHUNK {
+        n.max(1)
     } else {
         TRACE_CHUNK.min((n / (4 * threads)).max(MIN_CHUNK))
     };

@@ -133,16 +133,32 @@ fn sibenik_camera_and_reflection_rays_match_single_rays_at_every_simd_level() {
         .collect();
     let mwant = single(&tree, &mo, &md, &mtm);
     assert!(mo.len() > 100_000, "{} mirror rays", mo.len());
+    // On one thread every batch is traced whole by its caller's thread; on several, batches of
+    // 1,024 rays or more spread their frusta over the pool (the whole set: one batch).
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let three = rayon::ThreadPoolBuilder::new()
+        .num_threads(3)
+        .build()
+        .unwrap();
     for level in Level::supported() {
-        for chunk in [4096, 1000] {
-            let hits = check(&tree, level, chunk, &o, &d, &tm, &want);
-            assert!(hits > n / 2, "{hits} hits of {n}: not a useful test");
-        }
-        let hits = check(&tree, level, 4096, &ro, &rd, &rtm, &rwant);
-        assert!(hits > ro.len() / 2, "{hits} of {}", ro.len());
-        for chunk in [4096, 1000] {
-            let hits = check(&tree, level, chunk, &mo, &md, &mtm, &mwant);
-            assert!(hits > mo.len() / 2, "{hits} of {}", mo.len());
+        for (pool, chunks) in [(&one, [4096, 1000]), (&three, [4096, n])] {
+            pool.install(|| {
+                for chunk in chunks {
+                    let hits = check(&tree, level, chunk, &o, &d, &tm, &want);
+                    assert!(hits > n / 2, "{hits} hits of {n}: not a useful test");
+                }
+                for chunk in [4096, ro.len()] {
+                    let hits = check(&tree, level, chunk, &ro, &rd, &rtm, &rwant);
+                    assert!(hits > ro.len() / 2, "{hits} of {}", ro.len());
+                }
+                for chunk in [1000, 4096, mo.len()] {
+                    let hits = check(&tree, level, chunk, &mo, &md, &mtm, &mwant);
+                    assert!(hits > mo.len() / 2, "{hits} of {}", mo.len());
+                }
+            });
         }
     }
 }

@@ -15,7 +15,10 @@
 //! rejects go one by one. A batch from many origins (mirror reflections: the rays of a screen
 //! tile reflected by one plane leave from a small patch of it) goes the same way while its
 //! frusta's origins stay close together ([`MAX_SPREAD`], measured over the batch's first two
-//! frusta); otherwise the caller traces it as 4-ray packets.
+//! frusta); otherwise the caller traces it as 4-ray packets. On several threads
+//! ([`KdAccel::closest_frusta_par`]) the batch is regrouped in pieces of the intersect stage's
+//! chunk size (the tiles a one-thread render traces), the frusta go to the threads a few at a
+//! time, their answers into a buffer in tracing order, then back to their rows.
 //!
 //! **Traversal** ([`KdAccel::walk_frustum`]). One node fetch per frustum; whole-frustum culling
 //! through the lane mask (a node no lane enters is never fetched, a group of lanes none of which
@@ -48,7 +51,8 @@ use super::single::Entry;
 use super::visit::{Closest, Visitor};
 use crate::accel::kdtree::{MAX_DEPTH, TriHit};
 use crate::geometry::triangle::WatertightRay;
-use crate::simd::{bits, max_ps, min_ps};
+use crate::simd::{Kernel, Level, bits, max_ps, min_ps};
+use rayon::prelude::*;
 
 /// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
 pub(super) const WIDE: usize = 64;
@@ -155,6 +159,12 @@ pub(super) struct FrustumScratch {
     order: Vec<u32>,
     /// Each ray's shear, roughly (for the tiling only).
     shear: Vec<[f32; 2]>,
+    /// Where each frustum's run of `order` starts, then the batch's length (parallel batches).
+    runs: Vec<u32>,
+    /// Hit distances in tracing order (parallel batches).
+    buf_t: Vec<f32>,
+    /// Hit triangles in tracing order (parallel batches).
+    buf_tri: Vec<u32>,
 }
 
 impl FrustumScratch {
@@ -187,7 +197,125 @@ impl FrustumScratch {
             key: Vec::new(),
             order: Vec::new(),
             shear: Vec::new(),
+            runs: Vec::new(),
+            buf_t: Vec::new(),
+            buf_tri: Vec::new(),
         })
+    }
+}
+
+thread_local! {
+    /// Each thread's spare scratch spaces, reused by every batch and work item it traces (two
+    /// at most: a batch traced on several threads holds one while its work items on the same
+    /// thread use another).
+    static SCRATCH: std::cell::RefCell<Vec<Box<FrustumScratch>>> =
+        const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// A spare scratch space of this thread (a new one if it has none). Taken out and put back
+/// ([`put_scratch`]) rather than used inside `with_borrow_mut`: a closure would be compiled
+/// apart from the caller, without its SIMD level.
+pub(super) fn take_scratch() -> Box<FrustumScratch> {
+    SCRATCH
+        .with_borrow_mut(Vec::pop)
+        .unwrap_or_else(FrustumScratch::new)
+}
+
+/// Gives a scratch space back to this thread's spares (see [`take_scratch`]).
+pub(super) fn put_scratch(scratch: Box<FrustumScratch>) {
+    SCRATCH.with_borrow_mut(|spare| {
+        if spare.len() < 2 {
+            spare.push(scratch);
+        }
+    });
+}
+
+/// Frusta per work item of a batch traced on several threads: many more items than threads, so
+/// they end together, each a few tens of microseconds.
+const RUNS_PER_ITEM: usize = 4;
+
+/// Rays regrouped together when a batch is traced on several threads: the intersect stage's
+/// chunk on one thread, so that the frusta are the tiles a render traces.
+const PIECE: usize = crate::stages::intersect::TRACE_CHUNK;
+
+/// Rays from which a closest-hit batch is traced on all the threads of the current rayon pool
+/// ([`KdAccel::closest_frusta_par`]) when it has more than one.
+pub(super) const PAR_MIN: usize = 16 * WIDE;
+
+/// Frustum runs `runs[0]..runs[last]` of a regrouped batch traced as one [`Kernel`] (compiled
+/// per SIMD level); answers go to `out_*` in tracing order, from `runs[0]`.
+struct Runs<'a> {
+    /// The accelerator.
+    accel: &'a KdAccel,
+    /// All the batch's origins.
+    origins: &'a [Vec3],
+    /// All the batch's directions.
+    dirs: &'a [Vec3],
+    /// All the batch's bounds.
+    t_max: &'a [f32],
+    /// Rays in tracing order.
+    order: &'a [u32],
+    /// Per-ray sort keys (`>> 24`: permutation).
+    key: &'a [u32],
+    /// Starts of the runs, then the end of the last.
+    runs: &'a [u32],
+    /// Hit distances out, tracing order.
+    out_t: &'a mut [f32],
+    /// Hit triangles out, tracing order.
+    out_tri: &'a mut [u32],
+}
+
+impl Kernel for Runs<'_> {
+    /// The origins' spread summed over the frusta ([`MAX_SPREAD`]).
+    type Output = f32;
+
+    #[inline(always)]
+    fn run(self, level: Level) -> f32 {
+        let Runs {
+            accel,
+            origins,
+            dirs,
+            t_max,
+            order,
+            key,
+            runs,
+            out_t,
+            out_tri,
+        } = self;
+        let mut scratch = take_scratch();
+        let FrustumScratch { f, stack, tmp, .. } = &mut *scratch;
+        f.spread = 0.0;
+        let base = runs[0] as usize;
+        for w in runs.windows(2) {
+            let (i, end) = (w[0] as usize, w[1] as usize);
+            let rows = &order[i..end];
+            let (t, tri) = (
+                &mut out_t[i - base..end - base],
+                &mut out_tri[i - base..end - base],
+            );
+            let perm = key[rows[0] as usize] >> 24;
+            if perm >= 6 {
+                for (k, &r) in rows.iter().enumerate() {
+                    let r = r as usize;
+                    (t[k], tri[k]) = accel.single_closest(origins[r], dirs[r], t_max[r]);
+                }
+                continue;
+            }
+            let rays = Rows {
+                origins,
+                perm,
+                dirs,
+                t_max,
+                rows,
+            };
+            match level {
+                Level::Avx512 => accel.frustum::<16>(&rays, t, tri, true, f, stack, tmp),
+                _ => accel.frustum::<8>(&rays, t, tri, true, f, stack, tmp),
+            }
+        }
+        let spread = f.spread;
+        put_scratch(scratch);
+        spread
     }
 }
 
@@ -447,11 +575,143 @@ impl KdAccel {
                     t_max,
                     rows,
                 };
-                self.frustum::<G>(&rays, out_t, out_tri, f, stack, tmp);
+                self.frustum::<G>(&rays, out_t, out_tri, false, f, stack, tmp);
                 frusta += 1;
             }
             i = end;
         }
+        true
+    }
+
+    /// [`KdAccel::closest_frusta`] on the threads of the current rayon pool: the whole batch
+    /// regrouped once, its frusta traced in parallel (whole frusta, [`RUNS_PER_ITEM`] per work
+    /// item) into a buffer in tracing order, then copied to their rows. Same answers and same
+    /// return value as the one-thread version.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn closest_frusta_par(
+        &self,
+        level: Level,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out_t: &mut [f32],
+        out_tri: &mut [u32],
+        scratch: &mut FrustumScratch,
+    ) -> bool {
+        let n = origins.len();
+        if n < 2 * WIDE {
+            return false;
+        }
+        let o = origins[0].to_array().map(f32::to_bits);
+        let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
+        let FrustumScratch {
+            key,
+            order,
+            runs,
+            buf_t,
+            buf_tri,
+            ..
+        } = scratch;
+        // Regrouped piece by piece, in parallel: the tiles of a render's trace chunks, cut into
+        // runs exactly as `closest_frusta` cuts them.
+        // (Every entry of `key`, `order` and `buf_*` is written below: resized, not cleared.)
+        key.resize(n, 0);
+        order.resize(n, 0);
+        let piece_runs: Vec<Vec<u32>> = key
+            .par_chunks_mut(PIECE)
+            .zip(order.par_chunks_mut(PIECE))
+            .enumerate()
+            .map(|(c, (key, order))| {
+                let first = c * PIECE;
+                let m = key.len();
+                let mut s = take_scratch();
+                self.regroup(&dirs[first..first + m], WIDE, &mut s);
+                key.copy_from_slice(&s.key);
+                for (o, &r) in order.iter_mut().zip(&s.order) {
+                    *o = first as u32 + r;
+                }
+                put_scratch(s);
+                let mut runs = Vec::with_capacity(m.div_ceil(WIDE) + 6);
+                let mut i = 0;
+                while i < m {
+                    runs.push((first + i) as u32);
+                    let perm = key[order[i] as usize - first] >> 24;
+                    let mut end = i + 1;
+                    while end < m
+                        && end < i + WIDE
+                        && key[order[end] as usize - first] >> 24 == perm
+                    {
+                        end += 1;
+                    }
+                    i = end;
+                }
+                runs
+            })
+            .collect();
+        let (key, order) = (&key[..], &order[..]);
+        runs.clear();
+        for r in &piece_runs {
+            runs.extend_from_slice(r);
+        }
+        runs.push(n as u32);
+        let runs = &runs[..];
+        buf_t.resize(n, 0.0);
+        buf_tri.resize(n, 0);
+        let kernel = |runs: &[u32], out_t: &mut [f32], out_tri: &mut [u32]| {
+            let k = Runs {
+                accel: self,
+                origins,
+                dirs,
+                t_max,
+                order,
+                key,
+                runs,
+                out_t,
+                out_tri,
+            };
+            crate::simd::dispatch(level, k)
+        };
+        // Rays from many origins: the first two frusta decide, as in `closest_frusta`.
+        let mut first = 0;
+        if !shared {
+            let mut frusta = 0;
+            while first + 1 < runs.len() && frusta < 2 {
+                frusta += usize::from(key[order[runs[first] as usize] as usize] >> 24 < 6);
+                first += 1;
+            }
+            let end = runs[first] as usize;
+            let spread = kernel(&runs[..=first], &mut buf_t[..end], &mut buf_tri[..end]);
+            if first + 1 < runs.len() && spread > 2.0 * MAX_SPREAD {
+                return false;
+            }
+        }
+        let mut items = Vec::new();
+        let start = runs[first] as usize;
+        let (mut rest_t, mut rest_tri) = (&mut buf_t[start..], &mut buf_tri[start..]);
+        for a in (first..runs.len() - 1).step_by(RUNS_PER_ITEM) {
+            let b = (a + RUNS_PER_ITEM).min(runs.len() - 1);
+            let len = (runs[b] - runs[a]) as usize;
+            let (t, tail_t) = std::mem::take(&mut rest_t).split_at_mut(len);
+            let (tri, tail_tri) = std::mem::take(&mut rest_tri).split_at_mut(len);
+            (rest_t, rest_tri) = (tail_t, tail_tri);
+            items.push((a, b, t, tri));
+        }
+        items.into_par_iter().for_each(|(a, b, t, tri)| {
+            kernel(&runs[a..=b], t, tri);
+        });
+        // Each piece's answers back to its own rows.
+        out_t
+            .par_chunks_mut(PIECE)
+            .zip(out_tri.par_chunks_mut(PIECE))
+            .enumerate()
+            .for_each(|(c, (out_t, out_tri))| {
+                let r = c * PIECE..c * PIECE + out_t.len();
+                let found = buf_t[r.clone()].iter().zip(&buf_tri[r.clone()]);
+                for (&row, (&t, &tri)) in order[r.clone()].iter().zip(found) {
+                    let row = row as usize - r.start;
+                    (out_t[row], out_tri[row]) = (t, tri);
+                }
+            });
         true
     }
 
@@ -556,12 +816,15 @@ impl KdAccel {
 
     /// Traces the rays `rays.rows` (at most [`WIDE`], one permutation) as one frustum. The
     /// per-lane setup is `Ray::new` and `Ray::clip` written over the lanes (same operations).
+    /// Answers go to `out_*[row]`, or with `local` to `out_*[lane]` (tracing order).
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn frustum<const G: usize>(
         &self,
         rays: &Rows<'_>,
         out_t: &mut [f32],
         out_tri: &mut [u32],
+        local: bool,
         f: &mut Frustum,
         stack: &mut [WideEntry; STACK],
         tmp: &mut [[f32; WIDE]; 3],
@@ -634,7 +897,8 @@ impl KdAccel {
         entry.mask = bits(&live);
         for (lane, &r) in rays.rows.iter().enumerate() {
             if !live[lane] {
-                (out_t[r as usize], out_tri[r as usize]) = (f32::INFINITY, u32::MAX);
+                let at = if local { lane } else { r as usize };
+                (out_t[at], out_tri[at]) = (f32::INFINITY, u32::MAX);
             }
         }
         if entry.mask == 0 {
@@ -662,8 +926,8 @@ impl KdAccel {
         self.walk_frustum::<G>(f, entry, stack, tmp);
         for (lane, &r) in rays.rows.iter().enumerate() {
             if lanes >> lane & 1 != 0 {
-                let r = r as usize;
-                (out_t[r], out_tri[r]) = (f.best_t[lane], f.best_tri[lane]);
+                let at = if local { lane } else { r as usize };
+                (out_t[at], out_tri[at]) = (f.best_t[lane], f.best_tri[lane]);
             }
         }
     }

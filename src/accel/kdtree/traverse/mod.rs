@@ -162,7 +162,9 @@ impl KdAccel {
     /// whose directions agree in sign as packets. Compiled for the best SIMD level of the CPU
     /// ([`Level::current`]). Results are bit-identical to the single-ray query whatever the path
     /// and level (each lane makes exactly the single ray's decisions, see the module docs).
-    /// Panics if the slices' lengths differ.
+    /// Inside a rayon pool of several threads, a batch of 1,024 rays or more is regrouped in
+    /// pieces of [`TRACE_CHUNK`](crate::stages::intersect::TRACE_CHUNK) rays and its frusta are
+    /// traced on all the pool's threads. Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
         origins: &[Vec3],
@@ -278,23 +280,18 @@ impl Kernel for ClosestBatch<'_> {
             out_t,
             out_tri,
         } = self;
-        // One scratch space per thread, reused by every batch it traces.
-        thread_local! {
-            static SCRATCH: std::cell::RefCell<Option<Box<frustum::FrustumScratch>>> =
-                const { std::cell::RefCell::new(None) };
-        }
-        // (Taken out and put back rather than used inside `with_borrow_mut`: a closure would be
-        // compiled apart from this function, without its SIMD level.)
-        let mut scratch = SCRATCH
-            .with_borrow_mut(Option::take)
-            .unwrap_or_else(frustum::FrustumScratch::new);
-        let wide = match level {
-            Level::Avx512 => {
-                accel.closest_frusta::<16>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
+        let mut scratch = frustum::take_scratch();
+        let wide = if origins.len() >= frustum::PAR_MIN && rayon::current_num_threads() > 1 {
+            accel.closest_frusta_par(level, origins, dirs, t_max, out_t, out_tri, &mut scratch)
+        } else {
+            match level {
+                Level::Avx512 => {
+                    accel.closest_frusta::<16>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
+                }
+                _ => accel.closest_frusta::<8>(origins, dirs, t_max, out_t, out_tri, &mut scratch),
             }
-            _ => accel.closest_frusta::<8>(origins, dirs, t_max, out_t, out_tri, &mut scratch),
         };
-        SCRATCH.with_borrow_mut(|cached| *cached = Some(scratch));
+        frustum::put_scratch(scratch);
         if !wide {
             accel.batch::<WatertightRay, Closest>(origins, dirs, t_max, false, |i, h| {
                 (out_t[i], out_tri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
