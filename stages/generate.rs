@@ -13,6 +13,7 @@ use rayon::prelude::*;
 
 use crate::queue::lanes::store3;
 use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
+use crate::region::Region;
 use crate::sampling::{Strata, uniform};
 use crate::scene::{Camera, ImageSettings};
 use crate::simd::{Kernel, Level, dispatch};
@@ -106,12 +107,7 @@ impl Kernel for CameraKernel<'_> {
                 s += LANES as u32;
                 if s == spp {
                     s = 0;
-                    if i + 1 < region.x1 {
-                        (i, pixel) = (i + 1, pixel + 1);
-                    } else {
-                        (i, j) = (region.x0, j + 1);
-                        pixel = j * nx + i;
-                    }
+                    next_pixel((&mut i, &mut j, &mut pixel), region, nx);
                 }
             } else if full && spp == 1 && i as usize + LANES <= region.x1 as usize {
                 // One sample per pixel, the group's 8 pixels on one row of the region.
@@ -132,12 +128,7 @@ impl Kernel for CameraKernel<'_> {
                     s += 1;
                     if s == spp {
                         s = 0;
-                        if i + 1 < region.x1 {
-                            (i, pixel) = (i + 1, pixel + 1);
-                        } else {
-                            (i, j) = (region.x0, j + 1);
-                            pixel = j * nx + i;
-                        }
+                        next_pixel((&mut i, &mut j, &mut pixel), region, nx);
                     }
                 }
             }
@@ -161,6 +152,18 @@ impl Kernel for CameraKernel<'_> {
             }
             store3(&d, out);
         }
+    }
+}
+
+/// Moves the region cursor `(i, j)` and its image index `pixel` to the next pixel of `region`,
+/// row-major (`nx` pixels an image row).
+#[inline(always)]
+fn next_pixel((i, j, pixel): (&mut u32, &mut u32, &mut u32), region: Region, nx: u32) {
+    if *i + 1 < region.x1 {
+        (*i, *pixel) = (*i + 1, *pixel + 1);
+    } else {
+        (*i, *j) = (region.x0, *j + 1);
+        *pixel = *j * nx + *i;
     }
 }
 

@@ -515,6 +515,27 @@ fn one_sided(
     Sided::Step(tp_lo, tp_hi)
 }
 
+/// True when every origin has the bits of the first (camera rays; not reflections).
+#[inline(always)]
+fn shared_origin(origins: &[Vec3]) -> bool {
+    let o = origins[0].to_array().map(f32::to_bits);
+    origins.iter().all(|p| p.to_array().map(f32::to_bits) == o)
+}
+
+/// End of the run of rays that starts at `order[i]`: at most [`WIDE`] consecutive rays of
+/// `order` with the same axis permutation (`key >> 24`), ray `r`'s key at `key[r − offset]`.
+/// Both frusta entry points cut their runs with it.
+#[inline(always)]
+fn run_end(key: &[u32], order: &[u32], offset: usize, i: usize) -> usize {
+    let perm = key[order[i] as usize - offset] >> 24;
+    let m = order.len();
+    let mut end = i + 1;
+    while end < m && end < i + WIDE && key[order[end] as usize - offset] >> 24 == perm {
+        end += 1;
+    }
+    end
+}
+
 impl KdAccel {
     /// Closest hits of a batch traced as frusta (see the module docs); `G` lanes per SIMD step.
     /// Returns false when the batch is too small to be worth regrouping (then it wrote nothing)
@@ -534,8 +555,7 @@ impl KdAccel {
         if n < 2 * WIDE {
             return false;
         }
-        let o = origins[0].to_array().map(f32::to_bits);
-        let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
+        let shared = shared_origin(origins);
         self.regroup(dirs, WIDE, scratch);
         let FrustumScratch {
             f,
@@ -557,10 +577,7 @@ impl KdAccel {
                 return false;
             }
             let perm = key[order[i] as usize] >> 24;
-            let mut end = i + 1;
-            while end < n && end < i + WIDE && key[order[end] as usize] >> 24 == perm {
-                end += 1;
-            }
+            let end = run_end(key, &order[..n], 0, i);
             let rows = &order[i..end];
             if perm >= 6 {
                 for &r in rows {
@@ -602,8 +619,7 @@ impl KdAccel {
         if n < 2 * WIDE {
             return false;
         }
-        let o = origins[0].to_array().map(f32::to_bits);
-        let shared = origins.iter().all(|p| p.to_array().map(f32::to_bits) == o);
+        let shared = shared_origin(origins);
         let FrustumScratch {
             key,
             order,
@@ -635,15 +651,7 @@ impl KdAccel {
                 let mut i = 0;
                 while i < m {
                     runs.push((first + i) as u32);
-                    let perm = key[order[i] as usize - first] >> 24;
-                    let mut end = i + 1;
-                    while end < m
-                        && end < i + WIDE
-                        && key[order[end] as usize - first] >> 24 == perm
-                    {
-                        end += 1;
-                    }
-                    i = end;
+                    i = run_end(key, order, first, i);
                 }
                 runs
             })
