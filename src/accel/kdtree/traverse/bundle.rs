@@ -49,9 +49,6 @@ use glam::Vec3;
 
 use super::KdAccel;
 use super::interval::{DELTA, HI};
-use light_frustum::{SUBS, Span};
-
-mod light_frustum;
 use super::visit::Occluded;
 use crate::accel::kdtree::MAX_DEPTH;
 use crate::geometry::triangle::WatertightRay;
@@ -70,7 +67,7 @@ const ROUND: f32 = 1.0 / (1 << 20) as f32;
 const MIN_BUNDLED: usize = 32;
 
 /// Most consecutive rays of a batch grouped and sorted as one unit.
-const UNIT: usize = 1;
+const UNIT: usize = 4;
 
 /// What grouping needs of one unit: consecutive bundled rays of one group.
 #[derive(Clone, Copy)]
@@ -451,46 +448,16 @@ impl<C: Count> BatchKernel<'_, C> {
             dirs,
             t_max,
         };
-        let mut spans = [Span::default(); MAX_DEPTH + 1];
-        let mut b = 0;
-        while b < bundles.len() {
-            // Up to `SUBS` consecutive bundles of one group as one frustum.
-            let info = &bundles[b];
-            let mut e = b + 1;
-            while e < bundles.len()
-                && e - b < SUBS
-                && bundles[e].apex == info.apex
-                && bundles[e].k == info.k
-            {
-                e += 1;
-            }
+        for (b, info) in bundles.iter().enumerate() {
             let apex = apexes[info.apex as usize].to_array();
-            let mut hits = [0u32; SUBS];
-            let traced = accel.light_frustum::<V, C>(
-                apex,
-                &bundles[b..e],
-                &block[b * ROWS * w..e * ROWS * w],
-                &lane_ray[b * w..e * w],
-                &rays,
-                &mut spans,
-                count,
-                &mut hits,
-            );
-            for j in b..e {
-                let lanes = &lane_ray[j * w..(j + 1) * w];
-                let hit = if traced {
-                    hits[j - b]
-                } else {
-                    let rows = &block[j * ROWS * w..(j + 1) * ROWS * w];
-                    accel.bundle::<V, C>(apex, &bundles[j], rows, lanes, &rays, &mut stack, count)
-                };
-                for (l, &ray) in lanes.iter().enumerate().take(bundles[j].len as usize) {
-                    if hit & (1 << l) != 0 {
-                        out[ray as usize] = true;
-                    }
+            let rows = &block[b * ROWS * w..(b + 1) * ROWS * w];
+            let lanes = &lane_ray[b * w..(b + 1) * w];
+            let hit = accel.bundle::<V, C>(apex, info, rows, lanes, &rays, &mut stack, count);
+            for (l, &ray) in lanes.iter().enumerate().take(info.len as usize) {
+                if hit & (1 << l) != 0 {
+                    out[ray as usize] = true;
                 }
             }
-            b = e;
         }
     }
 }
@@ -684,13 +651,6 @@ struct Lanes<V: Wide> {
     pos: [V::Mask; 3],
     /// The same as one flag per axis.
     sign: [Sign; 3],
-    /// The original rays, for the triangle test.
-    tri: TriLanes<V>,
-}
-
-/// A bundle's original rays' watertight data, the axes permuted by the bundle's shared
-/// `(kx, ky, kz)`: what [`tri_hits`] reads.
-struct TriLanes<V: Wide> {
     /// Original origin, permuted: `o[kx]`, `o[ky]`, `o[kz]`.
     o: [V; 3],
     /// Shear `sx`.
@@ -819,13 +779,11 @@ impl KdAccel {
             slack_hi,
             pos,
             sign,
-            tri: TriLanes {
-                o: [o[k[0]], o[k[1]], o[k[2]]],
-                sx,
-                sy,
-                sz,
-                t_max,
-            },
+            o: [o[k[0]], o[k[1]], o[k[2]]],
+            sx,
+            sy,
+            sz,
+            t_max,
         };
         let start = Entry {
             t0,
@@ -929,7 +887,7 @@ impl KdAccel {
                     count.leaf(tris.len() as u32, live.count_ones());
                     for tri in tris {
                         count.tri();
-                        let h = tri_hits(&ln.tri, k, tri, live, rays, lanes);
+                        let h = tri_hits(ln, k, tri, live, rays, lanes);
                         if h != 0 {
                             hit |= h;
                             live &= !h;
@@ -965,7 +923,7 @@ impl KdAccel {
 /// once; a lane with a zero edge function takes the scalar test (its `f64` fallback).
 #[inline(always)]
 fn tri_hits<V: Wide>(
-    ln: &TriLanes<V>,
+    ln: &Lanes<V>,
     k: [usize; 3],
     tri: &[[f32; 3]; 3],
     live: u32,
