@@ -66,9 +66,6 @@ const ROUND: f32 = 1.0 / (1 << 20) as f32;
 /// Batches with fewer bundle-able rays than this go through the packet path as a whole.
 const MIN_BUNDLED: usize = 32;
 
-/// Bundles walked at once, in turns (see [`BatchKernel::trace`]).
-const IN_FLIGHT: usize = 2;
-
 /// Most consecutive rays of a batch grouped and sorted as one unit.
 const UNIT: usize = 4;
 
@@ -444,84 +441,25 @@ impl<C: Count> BatchKernel<'_, C> {
             node: 0,
             mask: 0,
         };
-        // Pending far children: one per tree level at most, for each walk in flight.
-        let mut stacks = vec![empty; (MAX_DEPTH + 1) * IN_FLIGHT];
+        // Pending far children: one per tree level at most.
+        let mut stack = vec![empty; MAX_DEPTH + 1];
         let rays = Rays {
             origins,
             dirs,
             t_max,
         };
-        // Two bundles walk in turns, one step each, so the out-of-order core overlaps their
-        // dependent node steps.
-        let (stack_a, stack_b) = stacks.split_at_mut(MAX_DEPTH + 1);
-        let mut next = 0;
-        loop {
-            let mut wa = None;
-            while wa.is_none() && next < bundles.len() {
-                wa = start_walk(accel, &apexes, &bundles, &block, &lane_ray, next, count);
-                next += 1;
-            }
-            let Some((ba, mut wa)) = wa else {
-                break;
-            };
-            let mut wb = None;
-            while wb.is_none() && next < bundles.len() {
-                wb = start_walk(accel, &apexes, &bundles, &block, &lane_ray, next, count);
-                next += 1;
-            }
-            let (mut da, mut db) = (false, wb.is_none());
-            while !(da && db) {
-                if !da {
-                    da = accel.step(&mut wa, &mut *stack_a, &rays, count);
-                }
-                if !db && let Some((_, wb)) = &mut wb {
-                    db = accel.step(wb, &mut *stack_b, &rays, count);
-                }
-            }
-            let b_hit = wb.map(|(b, w)| (b, w.hit));
-            for (b, hit) in [Some((ba, wa.hit)), b_hit].into_iter().flatten() {
-                let lanes = &lane_ray[b * w..(b + 1) * w];
-                for (l, &ray) in lanes.iter().enumerate().take(bundles[b].len as usize) {
-                    if hit & (1 << l) != 0 {
-                        out[ray as usize] = true;
-                    }
+        for (b, info) in bundles.iter().enumerate() {
+            let apex = apexes[info.apex as usize].to_array();
+            let rows = &block[b * ROWS * w..(b + 1) * ROWS * w];
+            let lanes = &lane_ray[b * w..(b + 1) * w];
+            let hit = accel.bundle::<V, C>(apex, info, rows, lanes, &rays, &mut stack, count);
+            for (l, &ray) in lanes.iter().enumerate().take(info.len as usize) {
+                if hit & (1 << l) != 0 {
+                    out[ray as usize] = true;
                 }
             }
         }
     }
-}
-
-/// Starts the walk of bundle `b` (see [`KdAccel::prepare`]).
-#[allow(clippy::too_many_arguments)]
-#[inline(always)]
-fn start_walk<'a, V: Wide, C: Count>(
-    accel: &KdAccel,
-    apexes: &[Vec3],
-    bundles: &[BundleInfo],
-    block: &[f32],
-    lane_ray: &'a [u32],
-    b: usize,
-    count: &mut C,
-) -> Option<(usize, Walk<'a, V>)> {
-    let w = V::LANES;
-    let info = &bundles[b];
-    let apex = apexes[info.apex as usize].to_array();
-    let rows = &block[b * ROWS * w..(b + 1) * ROWS * w];
-    let (ln, e) = accel.prepare::<V, C>(apex, info, rows, count)?;
-    let k = info.k;
-    Some((
-        b,
-        Walk {
-            apex,
-            k: [k[0] as usize % 3, k[1] as usize % 3, k[2] as usize % 3],
-            ln,
-            lanes: &lane_ray[b * w..(b + 1) * w],
-            alive: e.mask,
-            e,
-            sp: 0,
-            hit: 0,
-        },
-    ))
 }
 
 /// The face (`kz · 2 + swap`, as the single ray picks its axes) shared by all `V::LANES` rays
@@ -726,16 +664,20 @@ struct Lanes<V: Wide> {
 }
 
 impl KdAccel {
-    /// Starts one bundle from its block of lanes `rows` (see [`ROW_O`]): its lanes and root
-    /// entry, `None` when no lane enters the root box.
+    /// Traces one bundle from its block of lanes `rows` (see [`ROW_O`]); `lanes` are its
+    /// lanes' rays. Returns the mask of occluded lanes.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn prepare<V: Wide, C: Count>(
+    fn bundle<V: Wide, C: Count>(
         &self,
         apex: [f32; 3],
         info: &BundleInfo,
         rows: &[f32],
+        lanes: &[u32],
+        rays: &Rays<'_>,
+        stack: &mut [Entry<V>],
         count: &mut C,
-    ) -> Option<(Lanes<V>, Entry<V>)> {
+    ) -> u32 {
         let w = V::LANES;
         let o = [
             V::load(&rows[ROW_O * w..]),
@@ -828,7 +770,7 @@ impl KdAccel {
         let mask = V::bits(entered) & filled;
         count.bundle(info.len as u32);
         if mask == 0 {
-            return None;
+            return 0;
         }
         let ln = Lanes {
             inv,
@@ -849,145 +791,128 @@ impl KdAccel {
             node: 0,
             mask,
         };
-        Some((ln, start))
+        self.walk_bundle(apex, k, &ln, rays, lanes, start, stack, count)
     }
 
-    /// Advances the walk `w` by one inner node, or by one leaf and the pop after it (see the
-    /// module docs); returns `true` when the walk is over (its stack empty, or every lane
-    /// occluded), its occluded lanes in `w.hit`.
+    /// The bundle traversal from `start` (see the module docs); returns the occluded lanes.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn step<V: Wide, C: Count>(
+    fn walk_bundle<V: Wide, C: Count>(
         &self,
-        w: &mut Walk<'_, V>,
-        stack: &mut [Entry<V>],
+        apex: [f32; 3],
+        k: [usize; 3],
+        ln: &Lanes<V>,
         rays: &Rays<'_>,
+        lanes: &[u32],
+        start: Entry<V>,
+        stack: &mut [Entry<V>],
         count: &mut C,
-    ) -> bool {
+    ) -> u32 {
         let nodes = &self.tree.nodes[..];
-        let e = w.e;
-        let Some(&n) = nodes.get(e.node as usize) else {
-            return w.pop(stack);
-        };
-        if !n.is_leaf() {
-            count.node();
-            let ln = &w.ln;
-            let axis = n.axis().min(2);
-            let d = n.split() - w.apex[axis];
-            // Each lane's part below and above the plane (within the slack): `m0..` is
-            // beyond the plane's far side of the slack, `..m1` before its near side (an end,
-            // so times `HI`: `(tp + slack) · HI` from the prescaled reciprocal and slack).
-            let dv = V::splat(d);
-            let m0 = e.t0.max(dv.mul(ln.inv[axis]).sub(ln.slack[axis]));
-            let m1 = e.t1.min(dv.mul(ln.inv_hi[axis]).add(ln.slack_hi[axis]));
-            let (lo0, lo1, hi0, hi1) = match ln.sign[axis] {
-                Sign::Pos => (e.t0, m1, m0, e.t1),
-                Sign::Neg => (m0, e.t1, e.t0, m1),
-                Sign::Mixed => {
-                    let p = ln.pos[axis];
-                    (
-                        V::select(p, e.t0, m0),
-                        V::select(p, m1, e.t1),
-                        V::select(p, m0, e.t0),
-                        V::select(p, e.t1, m1),
-                    )
+        let mut sp = 0usize;
+        let mut alive = start.mask;
+        let mut hit = 0u32;
+        let mut e = start;
+        loop {
+            // Descend to a leaf.
+            let leaf = loop {
+                let Some(&n) = nodes.get(e.node as usize) else {
+                    break None;
+                };
+                if n.is_leaf() {
+                    break Some(n);
+                }
+                count.node();
+                let axis = n.axis().min(2);
+                let d = n.split() - apex[axis];
+                // Each lane's part below and above the plane (within the slack): `m0..` is
+                // beyond the plane's far side of the slack, `..m1` before its near side (an end,
+                // so times `HI`: `(tp + slack) · HI` from the prescaled reciprocal and slack).
+                let dv = V::splat(d);
+                let m0 = e.t0.max(dv.mul(ln.inv[axis]).sub(ln.slack[axis]));
+                let m1 = e.t1.min(dv.mul(ln.inv_hi[axis]).add(ln.slack_hi[axis]));
+                let (lo0, lo1, hi0, hi1) = match ln.sign[axis] {
+                    Sign::Pos => (e.t0, m1, m0, e.t1),
+                    Sign::Neg => (m0, e.t1, e.t0, m1),
+                    Sign::Mixed => {
+                        let p = ln.pos[axis];
+                        (
+                            V::select(p, e.t0, m0),
+                            V::select(p, m1, e.t1),
+                            V::select(p, m0, e.t0),
+                            V::select(p, e.t1, m1),
+                        )
+                    }
+                };
+                let lo_m = V::bits(V::le(lo0, lo1)) & e.mask;
+                let hi_m = V::bits(V::le(hi0, hi1)) & e.mask;
+                let below = Entry {
+                    t0: lo0,
+                    t1: lo1,
+                    node: e.node + 1,
+                    mask: lo_m,
+                };
+                let above = Entry {
+                    t0: hi0,
+                    t1: hi1,
+                    node: n.right(),
+                    mask: hi_m,
+                };
+                // The apex's side first.
+                let (near, far) = if d >= 0.0 {
+                    (below, above)
+                } else {
+                    (above, below)
+                };
+                if near.mask != 0 && far.mask != 0 {
+                    // (Never full: one entry per level of a tree at most `MAX_DEPTH` deep.)
+                    if sp < stack.len() {
+                        stack[sp] = far;
+                        sp += 1;
+                    }
+                    e = near;
+                } else if near.mask != 0 {
+                    e = near;
+                } else if far.mask != 0 {
+                    e = far;
+                } else {
+                    break None;
                 }
             };
-            let lo_m = V::bits(V::le(lo0, lo1)) & e.mask;
-            let hi_m = V::bits(V::le(hi0, hi1)) & e.mask;
-            let below = Entry {
-                t0: lo0,
-                t1: lo1,
-                node: e.node + 1,
-                mask: lo_m,
-            };
-            let above = Entry {
-                t0: hi0,
-                t1: hi1,
-                node: n.right(),
-                mask: hi_m,
-            };
-            // The apex's side first.
-            let (near, far) = if d >= 0.0 {
-                (below, above)
-            } else {
-                (above, below)
-            };
-            if near.mask != 0 && far.mask != 0 {
-                // (Never full: one entry per level of a tree at most `MAX_DEPTH` deep.)
-                if w.sp < stack.len() {
-                    stack[w.sp] = far;
-                    w.sp += 1;
-                }
-                w.e = near;
-            } else if near.mask != 0 {
-                w.e = near;
-            } else if far.mask != 0 {
-                w.e = far;
-            } else {
-                return w.pop(stack);
-            }
-            return false;
-        }
-        let s = n.offset() as usize;
-        let end = s + n.count() as usize;
-        if let Some(tris) = self.tris.get(s..end) {
-            let mut live = e.mask & w.alive;
-            count.leaf(tris.len() as u32, live.count_ones());
-            for tri in tris {
-                count.tri();
-                let h = tri_hits(&w.ln, w.k, tri, live, rays, w.lanes);
-                if h != 0 {
-                    w.hit |= h;
-                    live &= !h;
-                    w.alive &= !h;
-                    if live == 0 {
-                        break;
+            if let Some(n) = leaf {
+                let s = n.offset() as usize;
+                let end = s + n.count() as usize;
+                if let Some(tris) = self.tris.get(s..end) {
+                    let mut live = e.mask & alive;
+                    count.leaf(tris.len() as u32, live.count_ones());
+                    for tri in tris {
+                        count.tri();
+                        let h = tri_hits(ln, k, tri, live, rays, lanes);
+                        if h != 0 {
+                            hit |= h;
+                            live &= !h;
+                            alive &= !h;
+                            if live == 0 {
+                                break;
+                            }
+                        }
+                    }
+                    if alive == 0 {
+                        return hit;
                     }
                 }
             }
-            if w.alive == 0 {
-                return true;
-            }
-        }
-        w.pop(stack)
-    }
-}
-
-/// One bundle's traversal in progress (several are in flight at once, see
-/// [`BatchKernel::trace`]).
-struct Walk<'a, V: Wide> {
-    /// The bundle's apex.
-    apex: [f32; 3],
-    /// Its lanes' shared `(kx, ky, kz)`.
-    k: [usize; 3],
-    /// Its lanes.
-    ln: Lanes<V>,
-    /// Its lanes' rays.
-    lanes: &'a [u32],
-    /// The entry being descended.
-    e: Entry<V>,
-    /// Entries on its stack of pending far children.
-    sp: usize,
-    /// Lanes not yet occluded.
-    alive: u32,
-    /// Lanes found occluded.
-    hit: u32,
-}
-
-impl<V: Wide> Walk<'_, V> {
-    /// Moves to the next pending entry with a live lane; `true` when there is none.
-    #[inline(always)]
-    fn pop(&mut self, stack: &[Entry<V>]) -> bool {
-        loop {
-            if self.sp == 0 {
-                return true;
-            }
-            self.sp -= 1;
-            let mut e = stack[self.sp];
-            e.mask &= self.alive;
-            if e.mask != 0 {
-                self.e = e;
-                return false;
+            // Pop the next entry with a live lane.
+            loop {
+                if sp == 0 {
+                    return hit;
+                }
+                sp -= 1;
+                e = stack[sp];
+                e.mask &= alive;
+                if e.mask != 0 {
+                    break;
+                }
             }
         }
     }
