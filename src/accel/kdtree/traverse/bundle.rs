@@ -536,8 +536,9 @@ struct Rays<'a> {
 }
 
 /// The order to bundle `preps` in: by group, then along a Morton curve of the direction's shear
-/// (`d[kx]`, `d[ky]`) on a grid over the group's range with about `w / 4` rays per cell (a stable
-/// counting sort, so equal cells keep the batch's order).
+/// (`d[kx]`, `d[ky]`) on a grid over the group's range with about `w / 8` rays per cell, its
+/// cells as square as whole powers of two allow (Morton order within squares, the squares in a
+/// row along the longer axis; a stable counting sort, so equal cells keep the batch's order).
 #[inline(always)]
 fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
     const GROUPS: usize = MAX_APEXES * 6;
@@ -552,14 +553,29 @@ fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
             hi[g][k] = hi[g][k].max(s);
         }
     }
-    // Grid bits per axis and first bucket of each group.
-    let mut bits = [0u32; GROUPS];
+    // Grid bits per axis and first bucket of each group: about `size · 8 / w` cells, as square
+    // as the group's range allows (a long, thin range would otherwise get long, thin cells, and
+    // its bundles long, thin footprints).
+    let mut bits = [[0u32; 2]; GROUPS];
     let mut base = [0usize; GROUPS + 1];
     for g in 0..GROUPS {
-        let cells = (size[g] * 4 / w.max(1)).max(1);
-        // 4^bits ≥ cells, at most 2^12 cells.
-        bits[g] = (cells.next_power_of_two().trailing_zeros().div_ceil(2)).min(6);
-        base[g + 1] = base[g] + if size[g] > 0 { 1 << (2 * bits[g]) } else { 0 };
+        let cells = (size[g] * 8 / w.max(1)).max(1);
+        // At most 2^12 cells.
+        let total = cells.next_power_of_two().trailing_zeros().min(12) as i32;
+        let (sx, sy) = (hi[g][0] - lo[g][0], hi[g][1] - lo[g][1]);
+        // log2 of the range's aspect ratio, whole bits (0 for an empty or degenerate range).
+        let aspect = if sx > 0.0 && sy > 0.0 {
+            ((sx / sy).log2().round() as i32).clamp(-total, total)
+        } else if sx > 0.0 {
+            total
+        } else if sy > 0.0 {
+            -total
+        } else {
+            0
+        };
+        let bx = ((total + aspect + 1) / 2).clamp(0, total);
+        bits[g] = [bx as u32, (total - bx) as u32];
+        base[g + 1] = base[g] + if size[g] > 0 { 1 << total } else { 0 };
     }
     // Cells per unit of shear, per group and axis (0 for a group of one direction).
     let mut scale = [[0.0f32; 2]; GROUPS];
@@ -567,15 +583,20 @@ fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
         for k in 0..2 {
             let span = hi[g][k] - lo[g][k];
             if span > 0.0 {
-                scale[g][k] = (1u32 << bits[g]) as f32 / span;
+                scale[g][k] = (1u32 << bits[g][k]) as f32 / span;
             }
         }
     }
     let key = |p: &Prep, g: usize| -> usize {
-        let top = (1u32 << bits[g]) - 1;
-        let cx = (((p.uv[0] - lo[g][0]) * scale[g][0]) as u32).min(top);
-        let cy = (((p.uv[1] - lo[g][1]) * scale[g][1]) as u32).min(top);
-        base[g] + morton2(cx, cy) as usize
+        let [bx, by] = bits[g];
+        let cx = (((p.uv[0] - lo[g][0]) * scale[g][0]) as u32).min((1u32 << bx) - 1);
+        let cy = (((p.uv[1] - lo[g][1]) * scale[g][1]) as u32).min((1u32 << by) - 1);
+        // Along a Morton curve in squares of `2^m` cells, the squares in a row along the
+        // longer axis.
+        let m = bx.min(by);
+        let low = morton2(cx & ((1 << m) - 1), cy & ((1 << m) - 1));
+        let high = (cx >> m) | (cy >> m);
+        base[g] + ((high << (2 * m)) | low) as usize
     };
     let mut counts = vec![0u32; base[GROUPS] + 1];
     let keys: Vec<u32> = preps
