@@ -26,7 +26,7 @@ use crate::frame::Light;
 use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::split_by_counts;
-use crate::queue::lanes::load3;
+use crate::queue::lanes::{load3, store3};
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, SampleSlot, ShadowQueue};
 use crate::scene::{Material, Scene};
 use crate::simd::{Kernel, Level, dispatch};
@@ -375,14 +375,25 @@ impl HitLanes {
             spec: [false; LANES],
             smooth: [false; LANES],
         };
-        for (l, h) in rows.clone().enumerate() {
-            let m = &materials[hits.material[h] as usize];
-            for k in 0..3 {
-                x.kd[k][l] = m.kd[k];
-                x.ks[k][l] = m.ks[k];
+        let ids = &hits.material[rows.clone()];
+        if ids.len() == LANES && ids.iter().all(|&m| m == ids[0]) {
+            // One material in every lane (neighbouring samples mostly are): splats, read back as
+            // vectors without store-forwarding stalls.
+            let m = &materials[ids[0] as usize];
+            x.kd = m.kd.to_array().map(|v| [v; LANES]);
+            x.ks = m.ks.to_array().map(|v| [v; LANES]);
+            (x.exponent, x.alpha) = ([m.p; LANES], [m.alpha; LANES]);
+            x.spec = [specular && m.has_specular(); LANES];
+        } else {
+            for (l, h) in rows.clone().enumerate() {
+                let m = &materials[hits.material[h] as usize];
+                for k in 0..3 {
+                    x.kd[k][l] = m.kd[k];
+                    x.ks[k][l] = m.ks[k];
+                }
+                (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
+                x.spec[l] = specular && m.has_specular();
             }
-            (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
-            x.spec[l] = specular && m.has_specular();
         }
         if !meshes {
             return x;
@@ -524,8 +535,17 @@ impl Kernel for RadianceKernel<'_, '_> {
                     }
                     continue;
                 }
-                // No smooth lane: the lanes are the rows' values. Stored a component at a time
-                // (a whole `Vec3` built on the stack and copied stalls on store forwarding).
+                // No smooth lane: the lanes are the rows' values.
+                if per_hit == 1 {
+                    // One light: the group's rows are consecutive.
+                    for l in 0..rows.len() {
+                        kept += usize::from((r[0][l] != 0.0) | (r[1][l] != 0.0) | (r[2][l] != 0.0));
+                    }
+                    store3(&r, &mut self.out[rows.start - start..rows.end - start]);
+                    continue;
+                }
+                // Stored a component at a time (a whole `Vec3` built on the stack and copied
+                // stalls on store forwarding).
                 for (l, h) in rows.clone().enumerate() {
                     kept += usize::from((r[0][l] != 0.0) | (r[1][l] != 0.0) | (r[2][l] != 0.0));
                     let o = &mut self.out[(h - start) * per_hit + li];
@@ -579,6 +599,18 @@ impl Kernel for ShadowRayKernel<'_, '_> {
             let rows = g..(g + LANES).min(end);
             let spawn = load3(&self.hits.spawn[rows.clone()]);
             let (dir, t) = shadow_rays8(&spawn, light);
+            let values = &self.radiance[rows.start - start..rows.end - start];
+            if rows.len() == LANES && values.iter().all(|&v| v != Vec3::ZERO) {
+                // Every row kept: the group's rows go out whole.
+                let out = j..j + LANES;
+                self.origin[out.clone()].copy_from_slice(&self.hits.spawn[rows.clone()]);
+                store3(&dir, &mut self.direction[out.clone()]);
+                self.t_max[out.clone()].copy_from_slice(&t);
+                self.out_radiance[out.clone()].copy_from_slice(values);
+                self.slot[out].copy_from_slice(&self.hits.slot[rows]);
+                j += LANES;
+                continue;
+            }
             for (l, h) in rows.enumerate() {
                 let value = self.radiance[h - start];
                 if value != Vec3::ZERO {
