@@ -984,8 +984,13 @@ mod tests {
             let settings = ShadeSettings::for_scene(&scene);
             let mut rng = Rng(3);
             let mut rays = RayQueue::default();
+            let mut d = Vec3::NEG_Z;
             for s in 0..5000u32 {
-                let d = Vec3::new(rng.range(-0.8, 0.8), rng.range(-0.8, 0.3), -1.0);
+                // Half the rays random, half in runs of 16 equal rays: groups of 8 hits with one
+                // material, all lit (the kernels' whole-group paths), and mixed groups.
+                if s < 2500 || s % 16 == 0 {
+                    d = Vec3::new(rng.range(-0.8, 0.8), rng.range(-0.8, 0.3), -1.0);
+                }
                 rays.push(crate::queue::RayItem {
                     origin: Vec3::ZERO,
                     direction: d.normalize(),

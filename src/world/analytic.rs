@@ -789,7 +789,11 @@ mod tests {
         let mut hit_t = vec![0.0; o.len()];
         let mut prim = vec![PrimId::NONE; o.len()];
         world.intersect_closest_batch(&o, &d, &t, &mut hit_t, &mut prim);
-        let rows: Vec<usize> = (0..o.len()).filter(|&i| prim[i].is_hit()).collect();
+        let mut rows: Vec<usize> = (0..o.len()).filter(|&i| prim[i].is_hit()).collect();
+        // Half the rows in primitive order: most groups of 8 then share one primitive (the
+        // splatted entry), the rest mix them.
+        let half = rows.len() / 2;
+        rows[half..].sort_by_key(|&i| prim[i]);
         let pick = |c: &[Vec3]| rows.iter().map(|&i| c[i]).collect::<Vec<_>>();
         let (o, d) = (pick(&o), pick(&d));
         let t: Vec<f32> = rows.iter().map(|&i| hit_t[i]).collect();
