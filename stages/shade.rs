@@ -409,9 +409,10 @@ impl HitLanes {
     }
 
     /// [`shadow_radiance`] of the 8 hits toward `light`, lane by lane in its operations' order
-    /// (the specular power through the same `powf`, one lane at a time).
+    /// (the specular power through the same `powf`, one lane at a time), and a bit per lane whose
+    /// value is non-zero.
     #[inline(always)]
-    fn radiance(&self, light: &Light) -> [[f32; LANES]; 3] {
+    fn radiance(&self, light: &Light) -> ([[f32; LANES]; 3], u32) {
         let lp = light.position;
         let mut l_dir = [[0.0f32; LANES]; 3];
         let mut n_dot_l = [0.0f32; LANES];
@@ -447,6 +448,7 @@ impl HitLanes {
             }
         }
         let mut out = [[0.0f32; LANES]; 3];
+        let mut mask = 0u32;
         for l in 0..LANES {
             let diffuse = n_dot_l[l].max(0.0);
             let mut c = [0.0f32; 3];
@@ -463,8 +465,10 @@ impl HitLanes {
                 let r = self.w[k][l] * scale * c[k];
                 out[k][l] = if lit { r } else { 0.0 };
             }
+            let nonzero = (out[0][l] != 0.0) | (out[1][l] != 0.0) | (out[2][l] != 0.0);
+            mask |= u32::from(nonzero) << l;
         }
-        out
+        (out, mask)
     }
 }
 
@@ -519,7 +523,7 @@ impl Kernel for RadianceKernel<'_, '_> {
             );
             let smooth = x.smooth.iter().any(|&s| s);
             for (li, light) in self.lights.iter().enumerate() {
-                let r = x.radiance(light);
+                let (r, nonzero) = x.radiance(light);
                 if smooth {
                     for (l, h) in rows.clone().enumerate() {
                         let mut v = Vec3::new(r[0][l], r[1][l], r[2][l]);
@@ -538,16 +542,14 @@ impl Kernel for RadianceKernel<'_, '_> {
                 // No smooth lane: the lanes are the rows' values.
                 if per_hit == 1 {
                     // One light: the group's rows are consecutive.
-                    for l in 0..rows.len() {
-                        kept += usize::from((r[0][l] != 0.0) | (r[1][l] != 0.0) | (r[2][l] != 0.0));
-                    }
+                    kept += (nonzero & ((1 << rows.len()) - 1)).count_ones() as usize;
                     store3(&r, &mut self.out[rows.start - start..rows.end - start]);
                     continue;
                 }
                 // Stored a component at a time (a whole `Vec3` built on the stack and copied
                 // stalls on store forwarding).
                 for (l, h) in rows.clone().enumerate() {
-                    kept += usize::from((r[0][l] != 0.0) | (r[1][l] != 0.0) | (r[2][l] != 0.0));
+                    kept += ((nonzero >> l) & 1) as usize;
                     let o = &mut self.out[(h - start) * per_hit + li];
                     (o.x, o.y, o.z) = (r[0][l], r[1][l], r[2][l]);
                 }
