@@ -26,7 +26,7 @@ use crate::frame::Light;
 use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::split_by_counts;
-use crate::queue::lanes::load3;
+use crate::queue::lanes::{load3, store3};
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, SampleSlot, ShadowQueue};
 use crate::scene::{Material, Scene};
 use crate::simd::{Kernel, Level, dispatch};
@@ -375,14 +375,25 @@ impl HitLanes {
             spec: [false; LANES],
             smooth: [false; LANES],
         };
-        for (l, h) in rows.clone().enumerate() {
-            let m = &materials[hits.material[h] as usize];
-            for k in 0..3 {
-                x.kd[k][l] = m.kd[k];
-                x.ks[k][l] = m.ks[k];
+        let ids = &hits.material[rows.clone()];
+        if ids.len() == LANES && ids.iter().all(|&m| m == ids[0]) {
+            // One material in every lane (neighbouring samples mostly are): splats, read back as
+            // vectors without store-forwarding stalls.
+            let m = &materials[ids[0] as usize];
+            x.kd = m.kd.to_array().map(|v| [v; LANES]);
+            x.ks = m.ks.to_array().map(|v| [v; LANES]);
+            (x.exponent, x.alpha) = ([m.p; LANES], [m.alpha; LANES]);
+            x.spec = [specular && m.has_specular(); LANES];
+        } else {
+            for (l, h) in rows.clone().enumerate() {
+                let m = &materials[hits.material[h] as usize];
+                for k in 0..3 {
+                    x.kd[k][l] = m.kd[k];
+                    x.ks[k][l] = m.ks[k];
+                }
+                (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
+                x.spec[l] = specular && m.has_specular();
             }
-            (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
-            x.spec[l] = specular && m.has_specular();
         }
         if !meshes {
             return x;
@@ -398,9 +409,10 @@ impl HitLanes {
     }
 
     /// [`shadow_radiance`] of the 8 hits toward `light`, lane by lane in its operations' order
-    /// (the specular power through the same `powf`, one lane at a time).
+    /// (the specular power through the same `powf`, one lane at a time), and a bit per lane whose
+    /// value is non-zero.
     #[inline(always)]
-    fn radiance(&self, light: &Light) -> [[f32; LANES]; 3] {
+    fn radiance(&self, light: &Light) -> ([[f32; LANES]; 3], u32) {
         let lp = light.position;
         let mut l_dir = [[0.0f32; LANES]; 3];
         let mut n_dot_l = [0.0f32; LANES];
@@ -436,6 +448,7 @@ impl HitLanes {
             }
         }
         let mut out = [[0.0f32; LANES]; 3];
+        let mut mask = 0u32;
         for l in 0..LANES {
             let diffuse = n_dot_l[l].max(0.0);
             let mut c = [0.0f32; 3];
@@ -452,8 +465,10 @@ impl HitLanes {
                 let r = self.w[k][l] * scale * c[k];
                 out[k][l] = if lit { r } else { 0.0 };
             }
+            let nonzero = (out[0][l] != 0.0) | (out[1][l] != 0.0) | (out[2][l] != 0.0);
+            mask |= u32::from(nonzero) << l;
         }
-        out
+        (out, mask)
     }
 }
 
@@ -508,7 +523,7 @@ impl Kernel for RadianceKernel<'_, '_> {
             );
             let smooth = x.smooth.iter().any(|&s| s);
             for (li, light) in self.lights.iter().enumerate() {
-                let r = x.radiance(light);
+                let (r, nonzero) = x.radiance(light);
                 if smooth {
                     for (l, h) in rows.clone().enumerate() {
                         let mut v = Vec3::new(r[0][l], r[1][l], r[2][l]);
@@ -524,10 +539,17 @@ impl Kernel for RadianceKernel<'_, '_> {
                     }
                     continue;
                 }
-                // No smooth lane: the lanes are the rows' values. Stored a component at a time
-                // (a whole `Vec3` built on the stack and copied stalls on store forwarding).
+                // No smooth lane: the lanes are the rows' values.
+                if per_hit == 1 {
+                    // One light: the group's rows are consecutive.
+                    kept += (nonzero & ((1 << rows.len()) - 1)).count_ones() as usize;
+                    store3(&r, &mut self.out[rows.start - start..rows.end - start]);
+                    continue;
+                }
+                // Stored a component at a time (a whole `Vec3` built on the stack and copied
+                // stalls on store forwarding).
                 for (l, h) in rows.clone().enumerate() {
-                    kept += usize::from((r[0][l] != 0.0) | (r[1][l] != 0.0) | (r[2][l] != 0.0));
+                    kept += ((nonzero >> l) & 1) as usize;
                     let o = &mut self.out[(h - start) * per_hit + li];
                     (o.x, o.y, o.z) = (r[0][l], r[1][l], r[2][l]);
                 }
@@ -579,6 +601,18 @@ impl Kernel for ShadowRayKernel<'_, '_> {
             let rows = g..(g + LANES).min(end);
             let spawn = load3(&self.hits.spawn[rows.clone()]);
             let (dir, t) = shadow_rays8(&spawn, light);
+            let values = &self.radiance[rows.start - start..rows.end - start];
+            if rows.len() == LANES && values.iter().all(|&v| v != Vec3::ZERO) {
+                // Every row kept: the group's rows go out whole.
+                let out = j..j + LANES;
+                self.origin[out.clone()].copy_from_slice(&self.hits.spawn[rows.clone()]);
+                store3(&dir, &mut self.direction[out.clone()]);
+                self.t_max[out.clone()].copy_from_slice(&t);
+                self.out_radiance[out.clone()].copy_from_slice(values);
+                self.slot[out].copy_from_slice(&self.hits.slot[rows]);
+                j += LANES;
+                continue;
+            }
             for (l, h) in rows.enumerate() {
                 let value = self.radiance[h - start];
                 if value != Vec3::ZERO {
@@ -952,8 +986,13 @@ mod tests {
             let settings = ShadeSettings::for_scene(&scene);
             let mut rng = Rng(3);
             let mut rays = RayQueue::default();
+            let mut d = Vec3::NEG_Z;
             for s in 0..5000u32 {
-                let d = Vec3::new(rng.range(-0.8, 0.8), rng.range(-0.8, 0.3), -1.0);
+                // Half the rays random, half in runs of 16 equal rays: groups of 8 hits with one
+                // material, all lit (the kernels' whole-group paths), and mixed groups.
+                if s < 2500 || s % 16 == 0 {
+                    d = Vec3::new(rng.range(-0.8, 0.8), rng.range(-0.8, 0.3), -1.0);
+                }
                 rays.push(crate::queue::RayItem {
                     origin: Vec3::ZERO,
                     direction: d.normalize(),

@@ -351,13 +351,24 @@ impl Surfaces<'_, '_> {
         let mut radius = [0.0f32; LANES];
         let mut sphere = [false; LANES];
         let mut material = [0u32; LANES];
-        for (l, i) in (start..end).enumerate() {
-            let e = &self.prims[(self.prim[i].0 as usize).min(last)];
-            for k in 0..3 {
-                c[k][l] = e.centre[k];
-                nn[k][l] = e.normal[k];
+        let ids = &self.prim[start..end];
+        if ids.len() == LANES && ids.iter().all(|&p| p == ids[0]) {
+            // One primitive in every lane (neighbouring samples mostly are): splats, which the
+            // lane loop below reads back as vectors without store-forwarding stalls.
+            let e = &self.prims[(ids[0].0 as usize).min(last)];
+            c = e.centre.map(|v| [v; LANES]);
+            nn = e.normal.map(|v| [v; LANES]);
+            (radius, sphere, material) =
+                ([e.radius; LANES], [e.sphere; LANES], [e.material; LANES]);
+        } else {
+            for (l, i) in (start..end).enumerate() {
+                let e = &self.prims[(self.prim[i].0 as usize).min(last)];
+                for k in 0..3 {
+                    c[k][l] = e.centre[k];
+                    nn[k][l] = e.normal[k];
+                }
+                (radius[l], sphere[l], material[l]) = (e.radius, e.sphere, e.material);
             }
-            (radius[l], sphere[l], material[l]) = (e.radius, e.sphere, e.material);
         }
         let mut point = [[0.0f32; LANES]; 3];
         let mut normal = [[0.0f32; LANES]; 3];
@@ -778,7 +789,11 @@ mod tests {
         let mut hit_t = vec![0.0; o.len()];
         let mut prim = vec![PrimId::NONE; o.len()];
         world.intersect_closest_batch(&o, &d, &t, &mut hit_t, &mut prim);
-        let rows: Vec<usize> = (0..o.len()).filter(|&i| prim[i].is_hit()).collect();
+        let mut rows: Vec<usize> = (0..o.len()).filter(|&i| prim[i].is_hit()).collect();
+        // Half the rows in primitive order: most groups of 8 then share one primitive (the
+        // splatted entry), the rest mix them.
+        let half = rows.len() / 2;
+        rows[half..].sort_by_key(|&i| prim[i]);
         let pick = |c: &[Vec3]| rows.iter().map(|&i| c[i]).collect::<Vec<_>>();
         let (o, d) = (pick(&o), pick(&d));
         let t: Vec<f32> = rows.iter().map(|&i| hit_t[i]).collect();
