@@ -132,16 +132,20 @@ impl Kernel for CameraKernel<'_> {
                     }
                 }
             }
-            let mut d = [[0.0f32; LANES]; 3];
-            for l in 0..LANES {
-                let (dx, dy) = if jitter {
+            // The jitter first, then the image-plane point and direction: two straight lane
+            // loops the compiler turns into vector code (one loop with the branch inside stayed
+            // scalar: a `vsqrtss` and two `vdivss` per ray).
+            let (mut dx, mut dy) = ([0.5f32; LANES], [0.5f32; LANES]);
+            if jitter {
+                for l in 0..LANES {
                     let jx = uniform(image.seed, lp[l], 2 * ls[l]);
                     let jy = uniform(image.seed, lp[l], 2 * ls[l] + 1);
-                    ((lsx[l] + jx) / kf, (lsy[l] + jy) / mf)
-                } else {
-                    (0.5, 0.5)
-                };
-                let (x, y) = (li[l] + dx, lj[l] + dy);
+                    (dx[l], dy[l]) = ((lsx[l] + jx) / kf, (lsy[l] + jy) / mf);
+                }
+            }
+            let mut d = [[0.0f32; LANES]; 3];
+            for l in 0..LANES {
+                let (x, y) = (li[l] + dx[l], lj[l] + dy[l]);
                 let us = cam.l + rl * x / nxf;
                 let vs = cam.t - tb * y / nyf;
                 let px = us * u.x + vs * v.x - dw.x;
