@@ -980,6 +980,9 @@ impl KdAccel {
                 } else {
                     let mut nl = 0u64;
                     for g in 0..groups {
+                        if (m >> (g * G)) & group_bits::<G>() == 0 {
+                            continue;
+                        }
                         let o = lanes::<G, f32>(&f.org[axis], g);
                         let inv = lanes::<G, f32>(&f.inv[axis], g);
                         let mut b = [false; G];
@@ -1262,13 +1265,14 @@ fn hit_lanes<const G: usize>(
     let sx = *lanes::<G, f32>(&f.sx, g);
     let sy = *lanes::<G, f32>(&f.sy, g);
     let sz = *lanes::<G, f32>(&f.sz, g);
-    let limit = lanes_mut::<G, f32>(&mut f.limit, g);
-    let mut edge = [false; G];
-    let mut best_t = *lanes::<G, f32>(&f.best_t, g);
-    let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
-    let mut cull = *lanes::<G, f32>(&f.cull, g);
+    // The 2D edge functions first; a group in which no live lane is inside the triangle or on
+    // an edge (most groups at most triangles) skips the distance and the hit updates.
+    let mut u = [0.0f32; G];
+    let mut v = [0.0f32; G];
+    let mut w = [0.0f32; G];
+    let mut maybe = [false; G];
     for j in 0..G {
-        let rel = |v: &[f32; 3]| [v[0] - ox[j], v[1] - oy[j], v[2] - oz[j]];
+        let rel = |p: &[f32; 3]| [p[0] - ox[j], p[1] - oy[j], p[2] - oz[j]];
         let (a, b, c) = (rel(a), rel(b), rel(c));
         let ax = a[0] - sx[j] * a[2];
         let ay = a[1] - sy[j] * a[2];
@@ -1276,18 +1280,34 @@ fn hit_lanes<const G: usize>(
         let by = b[1] - sy[j] * b[2];
         let cx = c[0] - sx[j] * c[2];
         let cy = c[1] - sy[j] * c[2];
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
+        u[j] = cx * by - cy * bx;
+        v[j] = ax * cy - ay * cx;
+        w[j] = bx * ay - by * ax;
+        let on_edge = u[j] == 0.0 || v[j] == 0.0 || w[j] == 0.0;
+        let neg = u[j] < 0.0 || v[j] < 0.0 || w[j] < 0.0;
+        let pos = u[j] > 0.0 || v[j] > 0.0 || w[j] > 0.0;
+        maybe[j] = on_edge | !(neg & pos);
+    }
+    let maybe = bits(&maybe) & live;
+    if maybe == 0 {
+        return 0;
+    }
+    let limit = lanes_mut::<G, f32>(&mut f.limit, g);
+    let mut edge = [false; G];
+    let mut best_t = *lanes::<G, f32>(&f.best_t, g);
+    let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
+    let mut cull = *lanes::<G, f32>(&f.cull, g);
+    for j in 0..G {
+        let (u, v, w) = (u[j], v[j], w[j]);
         let on_edge = u == 0.0 || v == 0.0 || w == 0.0;
         let neg = u < 0.0 || v < 0.0 || w < 0.0;
         let pos = u > 0.0 || v > 0.0 || w > 0.0;
         let det = u + v + w;
-        let az = sz[j] * a[2];
-        let bz = sz[j] * b[2];
-        let cz = sz[j] * c[2];
+        let az = sz[j] * (a[2] - oz[j]);
+        let bz = sz[j] * (b[2] - oz[j]);
+        let cz = sz[j] * (c[2] - oz[j]);
         let t = (u * az + v * bz + w * cz) / det;
-        let live_j = live >> j & 1 != 0;
+        let live_j = maybe >> j & 1 != 0;
         let hit = live_j & !on_edge & !(neg & pos) & (det != 0.0) & (t > 0.0) & (t < limit[j]);
         let better = hit & ((t < best_t[j]) | (id < best_tri[j]));
         best_t[j] = if better { t } else { best_t[j] };
