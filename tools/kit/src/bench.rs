@@ -341,16 +341,17 @@ pub fn interleaved_medians_of<const N: usize>(
     })
 }
 
-/// Laps over the mirror reflection set per timed sample: about 64k rays a sample (several
-/// milliseconds on one thread, far above the timer's granularity), at least one lap.
+/// Laps over the mirror reflection set per timed sample: at least 2,048 rays a sample (one lap
+/// of Sibenik's 3,951 rays, under a millisecond: short enough that most samples see no other
+/// process take the core, long enough for the timer).
 pub fn reflect_laps(rays: usize) -> usize {
-    (65_536 / rays.max(1)).max(1)
+    2048usize.div_ceil(rays.max(1))
 }
 
-/// Samples per side of the mirror reflection set for `--repeat repeat`: four per repeat, odd,
-/// at least 9 (the median of many short samples rides out load spikes).
+/// Samples per side of the mirror reflection set for `--repeat repeat`: 60 per repeat, odd, at
+/// least 101 (the median of many short samples rides out load spikes).
 pub fn reflect_samples(repeat: usize) -> usize {
-    (4 * repeat.max(1)).max(9) | 1
+    (60 * repeat.max(1)).max(101) | 1
 }
 
 fn seconds(f: &mut impl FnMut()) -> f64 {
@@ -1100,7 +1101,7 @@ fn mirror_reflections(
     report.notes.push(format!(
         "embree-reflect rows: {n} reflection rays off a mirror floor added to the mesh \
          (of {} camera rays), {hit} of them hit; project {ours_mrays:.1} Mrays/s; each side \
-         timed as the median of {samples} samples of {laps} laps over the same rays, the \
+         timed as the median of {samples} samples of {laps} lap(s) over the same rays, the \
          three sides' samples alternating (one warm-up sample each)",
         camera.rays.len()
     ));

@@ -679,20 +679,24 @@ impl KdAccel {
             };
             crate::simd::dispatch(level, k)
         };
-        // Rays from many origins: the first two frusta decide, as in `closest_frusta`.
-        let mut first = 0;
+        // Rays from many origins: the first two frusta decide, as in `closest_frusta`, from
+        // their rays' origins (measured here rather than by tracing them first, so that every
+        // frustum goes to the threads at once; a lane that misses the root box counts too).
         if !shared {
-            let mut frusta = 0;
-            while first + 1 < runs.len() && frusta < 2 {
-                frusta += usize::from(key[order[runs[first] as usize] as usize] >> 24 < 6);
-                first += 1;
+            let (mut frusta, mut spread, mut r) = (0, 0.0, 0);
+            while r + 1 < runs.len() && frusta < 2 {
+                let rows = &order[runs[r] as usize..runs[r + 1] as usize];
+                if key[rows[0] as usize] >> 24 < 6 {
+                    frusta += 1;
+                    spread += self.origin_spread(origins, rows);
+                }
+                r += 1;
             }
-            let end = runs[first] as usize;
-            let spread = kernel(&runs[..=first], &mut buf_t[..end], &mut buf_tri[..end]);
-            if first + 1 < runs.len() && spread > 2.0 * MAX_SPREAD {
+            if r + 1 < runs.len() && spread > 2.0 * MAX_SPREAD {
                 return false;
             }
         }
+        let first = 0;
         let mut items = Vec::new();
         let start = runs[first] as usize;
         let (mut rest_t, mut rest_tri) = (&mut buf_t[start..], &mut buf_tri[start..]);
@@ -721,6 +725,21 @@ impl KdAccel {
                 }
             });
         true
+    }
+
+    /// The spread of the finite origins of the rays `rows` ([`MAX_SPREAD`]): the L∞ extent of
+    /// their box relative to the root box's largest side.
+    fn origin_spread(&self, origins: &[Vec3], rows: &[u32]) -> f32 {
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for &r in rows {
+            let o = origins[r as usize];
+            if o.is_finite() {
+                (lo, hi) = (lo.min(o), hi.max(o));
+            }
+        }
+        let (rlo, rhi) = (self.root.0, self.root.1);
+        let side = (0..3).map(|a| rhi[a] - rlo[a]).fold(0.0, f32::max);
+        (hi - lo).max(Vec3::ZERO).max_element() / side
     }
 
     /// One ray through the single-ray loop, as the output columns store it.
