@@ -970,6 +970,12 @@ impl KdAccel {
         tmp: &mut [[f32; WIDE]; 3],
     ) {
         let nodes = &self.tree.nodes[..];
+        // Whether node `i` is a leaf without triangles (see the child steps below).
+        let empty = |i: u32| {
+            nodes
+                .get(i as usize)
+                .is_some_and(|c| c.is_leaf() && c.count() == 0)
+        };
         let groups = WIDE / G;
         let mut sp = 0usize;
         let mut e = start;
@@ -1100,7 +1106,8 @@ impl KdAccel {
                     // Lanes whose near side goes first keep (t0, near t1) in `e` and push the
                     // far interval; the others the other way round.
                     let flip = if left_first { !nl } else { nl };
-                    if second_mask != 0 && sp < stack.len() {
+                    // (An empty second child is not pushed: see `empty` below.)
+                    if second_mask != 0 && sp < stack.len() && !empty(second_node) {
                         let top = &mut stack[sp];
                         for k in 0..WIDE {
                             let f_k = flip >> k & 1 != 0;
@@ -1125,7 +1132,22 @@ impl KdAccel {
                     }
                     continue;
                 }
-                if go_near != 0 && go_far != 0 {
+                // An empty leaf holds nothing to test: a child that is one is not entered
+                // (the lanes' answers are the same, one push and pop fewer).
+                if go_near != 0 && go_far != 0 && empty(near) {
+                    // On to the far child (without the pop's cull test: a lane may enter a
+                    // node it would have culled, which changes no answer, as above).
+                    e.node = far;
+                    e.mask = go_far;
+                    e.t0 = *far_t0;
+                    e.t1 = *far_t1;
+                    e.lo = far_lo;
+                } else if go_near != 0 && go_far != 0 && empty(far) {
+                    e.node = near;
+                    e.mask = go_near;
+                    e.t1 = *near_t1;
+                    e.hi = near_hi;
+                } else if go_near != 0 && go_far != 0 {
                     if sp < stack.len() {
                         let top = &mut stack[sp];
                         top.node = far;
