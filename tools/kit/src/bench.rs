@@ -319,6 +319,41 @@ pub fn interleaved_medians(repeat: usize, mut a: impl FnMut(), mut b: impl FnMut
     (median(ta), median(tb))
 }
 
+/// Median seconds of `samples` runs (at least one) of each of `sides`, after one warm-up run
+/// of each, the runs alternating (side 0, 1, …, 0, 1, …) so a change in the machine's load
+/// shows in every median.
+pub fn interleaved_medians_of<const N: usize>(
+    samples: usize,
+    sides: &mut [&mut dyn FnMut(); N],
+) -> [f64; N] {
+    for f in sides.iter_mut() {
+        f();
+    }
+    let mut t = [(); N].map(|_| Vec::new());
+    for _ in 0..samples.max(1) {
+        for (f, t) in sides.iter_mut().zip(t.iter_mut()) {
+            t.push(seconds(f));
+        }
+    }
+    t.map(|mut t| {
+        t.sort_by(f64::total_cmp);
+        t[t.len() / 2]
+    })
+}
+
+/// Laps over the mirror reflection set per timed sample: at least 2,048 rays a sample (one lap
+/// of Sibenik's 3,951 rays, under a millisecond: short enough that most samples see no other
+/// process take the core, long enough for the timer).
+pub fn reflect_laps(rays: usize) -> usize {
+    2048usize.div_ceil(rays.max(1))
+}
+
+/// Samples per side of the mirror reflection set for `--repeat repeat`: 60 per repeat, odd, at
+/// least 101 (the median of many short samples rides out load spikes).
+pub fn reflect_samples(repeat: usize) -> usize {
+    (60 * repeat.max(1)).max(101) | 1
+}
+
 fn seconds(f: &mut impl FnMut()) -> f64 {
     let start = Instant::now();
     f();
@@ -935,7 +970,8 @@ fn peers(
 /// snapshot's camera rays traced against it, and at every camera ray that hits the mirror a
 /// reflection ray (origin on the mirror, nudged up by 1e-4 of the scene's extent; direction
 /// reflected about the mirror's normal, `+y`; no `t_max`). Times the project's `intersect`
-/// kernel and Embree's `rtcIntersect1` / `rtcIntersect1M` on those rays in the same run and
+/// kernel and Embree's `rtcIntersect1` / `rtcIntersect1M` on those rays in the same run, the
+/// same way ([`interleaved_medians_of`] over samples of [`reflect_laps`] laps of the set), and
 /// adds peer rows (depth 1, peer names `embree-reflect1`, `embree-reflect1m`).
 #[cfg(feature = "embree")]
 fn mirror_reflections(
@@ -1020,34 +1056,53 @@ fn mirror_reflections(
         return Ok(());
     }
     let mut ours = HitColumns::default();
-    let s_ours = best_of(repeat, || {
-        intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut ours))
-    });
-    let ours_mrays = mrays_per_s(n, s_ours);
     let embree = EmbreeScene::with_config(v, idx, config).map_err(BenchError::Peer)?;
     let opts = TraceOpts::parallel();
     let (o, dir) = (cast_slice(&rays.origin), cast_slice(&rays.direction));
-    let (mut t, mut prim) = (vec![0.0; n], vec![0u32; n]);
-    for (name, stream) in [("embree-reflect1", false), ("embree-reflect1m", true)] {
-        let s = best_of(repeat, || {
-            if stream {
-                embree.intersect1m_with(opts, o, dir, &rays.t_max, &mut t, &mut prim)
-            } else {
-                embree.intersect1_with(opts, o, dir, &rays.t_max, &mut t, &mut prim)
+    let (mut t1, mut prim1) = (vec![0.0; n], vec![0u32; n]);
+    let (mut tm, mut primm) = (vec![0.0; n], vec![0u32; n]);
+    // The set is small (a few thousand rays, well under a millisecond): one sample traces it
+    // `laps` times (the same rays each lap), the three sides' samples alternate, and each
+    // side's time is the median of its samples.
+    let laps = reflect_laps(n);
+    let samples = reflect_samples(repeat);
+    let mut sides: [&mut dyn FnMut(); 3] = [
+        &mut || {
+            for _ in 0..laps {
+                intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut ours));
             }
-        });
+        },
+        &mut || {
+            for _ in 0..laps {
+                embree.intersect1_with(opts, o, dir, &rays.t_max, &mut t1, &mut prim1);
+            }
+        },
+        &mut || {
+            for _ in 0..laps {
+                embree.intersect1m_with(opts, o, dir, &rays.t_max, &mut tm, &mut primm);
+            }
+        },
+    ];
+    let [s_ours, s_1, s_1m] = interleaved_medians_of(samples, &mut sides).map(|s| s / laps as f64);
+    let ours_mrays = mrays_per_s(n, s_ours);
+    for (name, s, t, prim) in [
+        ("embree-reflect1", s_1, &t1, &prim1),
+        ("embree-reflect1m", s_1m, &tm, &primm),
+    ] {
         let mut r = Record::new(&scene.name, Stage::Intersect, 1, threads, n, s);
         r.peer = Some(name.into());
         r.project_mrays_per_s = Some(ours_mrays);
         r.ratio = Some(ours_mrays / r.mrays_per_s);
-        let c = compare_closest(&ours, &t, &prim);
+        let c = compare_closest(&ours, t, prim);
         (r.mismatches, r.hit_miss, r.ties) = (Some(c.mismatches), Some(c.hit_miss), Some(c.ties));
         rows.push(r);
     }
     let hit = ours.prim.iter().filter(|p| p.is_hit()).count();
     report.notes.push(format!(
         "embree-reflect rows: {n} reflection rays off a mirror floor added to the mesh \
-         (of {} camera rays), {hit} of them hit; project {ours_mrays:.1} Mrays/s",
+         (of {} camera rays), {hit} of them hit; project {ours_mrays:.1} Mrays/s; each side \
+         timed as the median of {samples} samples of {laps} lap(s) over the same rays, the \
+         three sides' samples alternating (one warm-up sample each)",
         camera.rays.len()
     ));
     Ok(())

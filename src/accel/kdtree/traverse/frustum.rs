@@ -679,20 +679,24 @@ impl KdAccel {
             };
             crate::simd::dispatch(level, k)
         };
-        // Rays from many origins: the first two frusta decide, as in `closest_frusta`.
-        let mut first = 0;
+        // Rays from many origins: the first two frusta decide, as in `closest_frusta`, from
+        // their rays' origins (measured here rather than by tracing them first, so that every
+        // frustum goes to the threads at once; a lane that misses the root box counts too).
         if !shared {
-            let mut frusta = 0;
-            while first + 1 < runs.len() && frusta < 2 {
-                frusta += usize::from(key[order[runs[first] as usize] as usize] >> 24 < 6);
-                first += 1;
+            let (mut frusta, mut spread, mut r) = (0, 0.0, 0);
+            while r + 1 < runs.len() && frusta < 2 {
+                let rows = &order[runs[r] as usize..runs[r + 1] as usize];
+                if key[rows[0] as usize] >> 24 < 6 {
+                    frusta += 1;
+                    spread += self.origin_spread(origins, rows);
+                }
+                r += 1;
             }
-            let end = runs[first] as usize;
-            let spread = kernel(&runs[..=first], &mut buf_t[..end], &mut buf_tri[..end]);
-            if first + 1 < runs.len() && spread > 2.0 * MAX_SPREAD {
+            if r + 1 < runs.len() && spread > 2.0 * MAX_SPREAD {
                 return false;
             }
         }
+        let first = 0;
         let mut items = Vec::new();
         let start = runs[first] as usize;
         let (mut rest_t, mut rest_tri) = (&mut buf_t[start..], &mut buf_tri[start..]);
@@ -721,6 +725,21 @@ impl KdAccel {
                 }
             });
         true
+    }
+
+    /// The spread of the finite origins of the rays `rows` ([`MAX_SPREAD`]): the L∞ extent of
+    /// their box relative to the root box's largest side.
+    fn origin_spread(&self, origins: &[Vec3], rows: &[u32]) -> f32 {
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for &r in rows {
+            let o = origins[r as usize];
+            if o.is_finite() {
+                (lo, hi) = (lo.min(o), hi.max(o));
+            }
+        }
+        let (rlo, rhi) = (self.root.0, self.root.1);
+        let side = (0..3).map(|a| rhi[a] - rlo[a]).fold(0.0, f32::max);
+        (hi - lo).max(Vec3::ZERO).max_element() / side
     }
 
     /// One ray through the single-ray loop, as the output columns store it.
@@ -951,6 +970,12 @@ impl KdAccel {
         tmp: &mut [[f32; WIDE]; 3],
     ) {
         let nodes = &self.tree.nodes[..];
+        // Whether node `i` is a leaf without triangles (see the child steps below).
+        let empty = |i: u32| {
+            nodes
+                .get(i as usize)
+                .is_some_and(|c| c.is_leaf() && c.count() == 0)
+        };
         let groups = WIDE / G;
         let mut sp = 0usize;
         let mut e = start;
@@ -980,6 +1005,9 @@ impl KdAccel {
                 } else {
                     let mut nl = 0u64;
                     for g in 0..groups {
+                        if (m >> (g * G)) & group_bits::<G>() == 0 {
+                            continue;
+                        }
                         let o = lanes::<G, f32>(&f.org[axis], g);
                         let inv = lanes::<G, f32>(&f.inv[axis], g);
                         let mut b = [false; G];
@@ -1078,7 +1106,8 @@ impl KdAccel {
                     // Lanes whose near side goes first keep (t0, near t1) in `e` and push the
                     // far interval; the others the other way round.
                     let flip = if left_first { !nl } else { nl };
-                    if second_mask != 0 && sp < stack.len() {
+                    // (An empty second child is not pushed: see `empty` below.)
+                    if second_mask != 0 && sp < stack.len() && !empty(second_node) {
                         let top = &mut stack[sp];
                         for k in 0..WIDE {
                             let f_k = flip >> k & 1 != 0;
@@ -1103,7 +1132,22 @@ impl KdAccel {
                     }
                     continue;
                 }
-                if go_near != 0 && go_far != 0 {
+                // An empty leaf holds nothing to test: a child that is one is not entered
+                // (the lanes' answers are the same, one push and pop fewer).
+                if go_near != 0 && go_far != 0 && empty(near) {
+                    // On to the far child (without the pop's cull test: a lane may enter a
+                    // node it would have culled, which changes no answer, as above).
+                    e.node = far;
+                    e.mask = go_far;
+                    e.t0 = *far_t0;
+                    e.t1 = *far_t1;
+                    e.lo = far_lo;
+                } else if go_near != 0 && go_far != 0 && empty(far) {
+                    e.node = near;
+                    e.mask = go_near;
+                    e.t1 = *near_t1;
+                    e.hi = near_hi;
+                } else if go_near != 0 && go_far != 0 {
                     if sp < stack.len() {
                         let top = &mut stack[sp];
                         top.node = far;
@@ -1262,13 +1306,14 @@ fn hit_lanes<const G: usize>(
     let sx = *lanes::<G, f32>(&f.sx, g);
     let sy = *lanes::<G, f32>(&f.sy, g);
     let sz = *lanes::<G, f32>(&f.sz, g);
-    let limit = lanes_mut::<G, f32>(&mut f.limit, g);
-    let mut edge = [false; G];
-    let mut best_t = *lanes::<G, f32>(&f.best_t, g);
-    let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
-    let mut cull = *lanes::<G, f32>(&f.cull, g);
+    // The 2D edge functions first; a group in which no live lane is inside the triangle or on
+    // an edge (most groups at most triangles) skips the distance and the hit updates.
+    let mut u = [0.0f32; G];
+    let mut v = [0.0f32; G];
+    let mut w = [0.0f32; G];
+    let mut maybe = [false; G];
     for j in 0..G {
-        let rel = |v: &[f32; 3]| [v[0] - ox[j], v[1] - oy[j], v[2] - oz[j]];
+        let rel = |p: &[f32; 3]| [p[0] - ox[j], p[1] - oy[j], p[2] - oz[j]];
         let (a, b, c) = (rel(a), rel(b), rel(c));
         let ax = a[0] - sx[j] * a[2];
         let ay = a[1] - sy[j] * a[2];
@@ -1276,18 +1321,34 @@ fn hit_lanes<const G: usize>(
         let by = b[1] - sy[j] * b[2];
         let cx = c[0] - sx[j] * c[2];
         let cy = c[1] - sy[j] * c[2];
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
+        u[j] = cx * by - cy * bx;
+        v[j] = ax * cy - ay * cx;
+        w[j] = bx * ay - by * ax;
+        let on_edge = u[j] == 0.0 || v[j] == 0.0 || w[j] == 0.0;
+        let neg = u[j] < 0.0 || v[j] < 0.0 || w[j] < 0.0;
+        let pos = u[j] > 0.0 || v[j] > 0.0 || w[j] > 0.0;
+        maybe[j] = on_edge | !(neg & pos);
+    }
+    let maybe = bits(&maybe) & live;
+    if maybe == 0 {
+        return 0;
+    }
+    let limit = lanes_mut::<G, f32>(&mut f.limit, g);
+    let mut edge = [false; G];
+    let mut best_t = *lanes::<G, f32>(&f.best_t, g);
+    let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
+    let mut cull = *lanes::<G, f32>(&f.cull, g);
+    for j in 0..G {
+        let (u, v, w) = (u[j], v[j], w[j]);
         let on_edge = u == 0.0 || v == 0.0 || w == 0.0;
         let neg = u < 0.0 || v < 0.0 || w < 0.0;
         let pos = u > 0.0 || v > 0.0 || w > 0.0;
         let det = u + v + w;
-        let az = sz[j] * a[2];
-        let bz = sz[j] * b[2];
-        let cz = sz[j] * c[2];
+        let az = sz[j] * (a[2] - oz[j]);
+        let bz = sz[j] * (b[2] - oz[j]);
+        let cz = sz[j] * (c[2] - oz[j]);
         let t = (u * az + v * bz + w * cz) / det;
-        let live_j = live >> j & 1 != 0;
+        let live_j = maybe >> j & 1 != 0;
         let hit = live_j & !on_edge & !(neg & pos) & (det != 0.0) & (t > 0.0) & (t < limit[j]);
         let better = hit & ((t < best_t[j]) | (id < best_tri[j]));
         best_t[j] = if better { t } else { best_t[j] };
