@@ -36,7 +36,8 @@
 //! lowest live lane's near side goes first. That order changes no answer: a lane still visits
 //! every leaf that starts before its best hit (culling skips only entries beyond it), so it meets
 //! the leaf holding its closest hit, and it keeps the least `(t, index)` of what it tests, as the
-//! single ray does.
+//! single ray does. For the same reason a child that is an empty leaf is neither entered nor
+//! pushed: it holds nothing to test, so skipping it changes no lane's answer.
 //!
 //! **Triangles**: one triangle against a group of lanes with the watertight test's operations in
 //! the scalar order, lanes on an edge retested with the scalar code (its double-precision
