@@ -197,7 +197,8 @@ fn generate_at(
     let (stratum_x, stratum_y): (Vec<f32>, Vec<f32>) = (0..wave.samples.max(1))
         .map(|s| ((s % k) as f32, (s / k) as f32))
         .unzip();
-    out.direction.clear();
+    // The kernel writes every row: only rows the column did not have yet are initialised.
+    out.direction.truncate(n);
     out.direction.resize(n, Vec3::ZERO);
     out.direction
         .par_chunks_mut(MIN_CHUNK)
@@ -215,14 +216,20 @@ fn generate_at(
             };
             dispatch(level, kernel);
         });
-    out.origin.clear();
-    out.origin.resize(n, Vec3::ZERO); // the eye: the render frame's origin
-    out.t_max.clear();
+    // Constant columns, overwritten in place (only rows the columns did not have are added).
+    fill_splat(out.origin, n, 0.0); // the eye: the render frame's origin
     out.t_max.resize(n, f32::INFINITY);
-    out.weight.clear();
-    out.weight.resize(n, Vec3::ONE);
+    out.t_max.fill(f32::INFINITY);
+    fill_splat(out.weight, n, 1.0);
     out.slot.clear();
     out.slot.extend((0..n as u32).map(SampleSlot));
+}
+
+/// Sets `column` to `n` rows of `Vec3::splat(value)`, written as a run of plain `f32`s: vector
+/// stores, where `Vec::resize` writes the 12-byte rows one by one.
+fn fill_splat(column: &mut Vec<Vec3>, n: usize, value: f32) {
+    column.resize(n, Vec3::splat(value));
+    bytemuck::cast_slice_mut::<Vec3, f32>(column).fill(value);
 }
 
 #[cfg(test)]
