@@ -299,24 +299,14 @@ pub fn best_of(repeat: usize, mut f: impl FnMut()) -> f64 {
 
 /// Median seconds of `repeat` runs (at least one) of `f`, without warm-up.
 pub fn median_of(repeat: usize, mut f: impl FnMut()) -> f64 {
-    let mut t: Vec<f64> = (0..repeat.max(1)).map(|_| seconds(&mut f)).collect();
-    t.sort_by(f64::total_cmp);
-    t[t.len() / 2]
+    median((0..repeat.max(1)).map(|_| seconds(&mut f)).collect())
 }
 
 /// Median seconds of `repeat` runs (at least one) of each of `a` and `b`, without warm-up, the
 /// runs alternating (a, b, a, b, …) so a change in the machine's load shows in both medians.
 pub fn interleaved_medians(repeat: usize, mut a: impl FnMut(), mut b: impl FnMut()) -> (f64, f64) {
-    let (mut ta, mut tb) = (vec![], vec![]);
-    for _ in 0..repeat.max(1) {
-        ta.push(seconds(&mut a));
-        tb.push(seconds(&mut b));
-    }
-    let median = |mut t: Vec<f64>| {
-        t.sort_by(f64::total_cmp);
-        t[t.len() / 2]
-    };
-    (median(ta), median(tb))
+    let [ta, tb] = alternating_medians(repeat, &mut [&mut a, &mut b]);
+    (ta, tb)
 }
 
 /// Median seconds of `samples` runs (at least one) of each of `sides`, after one warm-up run
@@ -329,16 +319,28 @@ pub fn interleaved_medians_of<const N: usize>(
     for f in sides.iter_mut() {
         f();
     }
+    alternating_medians(samples, sides)
+}
+
+/// Median seconds of `samples` runs (at least one) of each of `sides`, without warm-up, the
+/// runs alternating.
+fn alternating_medians<const N: usize>(
+    samples: usize,
+    sides: &mut [&mut dyn FnMut(); N],
+) -> [f64; N] {
     let mut t = [(); N].map(|_| Vec::new());
     for _ in 0..samples.max(1) {
         for (f, t) in sides.iter_mut().zip(t.iter_mut()) {
             t.push(seconds(f));
         }
     }
-    t.map(|mut t| {
-        t.sort_by(f64::total_cmp);
-        t[t.len() / 2]
-    })
+    t.map(median)
+}
+
+/// The median of `t` (the upper one of an even count); `t` not empty.
+fn median(mut t: Vec<f64>) -> f64 {
+    t.sort_by(f64::total_cmp);
+    t[t.len() / 2]
 }
 
 /// Laps over the mirror reflection set per timed sample: at least 2,048 rays a sample (one lap
