@@ -142,8 +142,6 @@ struct Frustum {
     limit: [f32; WIDE],
     /// Cull distance (`Closest::cull`).
     cull: [f32; WIDE],
-    /// Spread of the origins ([`MAX_SPREAD`]) summed over the batch's frusta.
-    spread: f32,
 }
 
 /// Scratch space of a batch of frusta, allocated once per batch.
@@ -191,7 +189,6 @@ impl FrustumScratch {
                 best_tri: [0; WIDE],
                 limit: [0.0; WIDE],
                 cull: [0.0; WIDE],
-                spread: 0.0,
             },
             stack: [WideEntry::default(); STACK],
             tmp: [[0.0; WIDE]; 3],
@@ -267,11 +264,10 @@ struct Runs<'a> {
 }
 
 impl Kernel for Runs<'_> {
-    /// The origins' spread summed over the frusta ([`MAX_SPREAD`]).
-    type Output = f32;
+    type Output = ();
 
     #[inline(always)]
-    fn run(self, level: Level) -> f32 {
+    fn run(self, level: Level) {
         let Runs {
             accel,
             origins,
@@ -285,7 +281,6 @@ impl Kernel for Runs<'_> {
         } = self;
         let mut scratch = take_scratch();
         let FrustumScratch { f, stack, tmp, .. } = &mut *scratch;
-        f.spread = 0.0;
         let base = runs[0] as usize;
         for w in runs.windows(2) {
             let (i, end) = (w[0] as usize, w[1] as usize);
@@ -314,9 +309,7 @@ impl Kernel for Runs<'_> {
                 _ => accel.frustum::<8>(&rays, t, tri, true, f, stack, tmp),
             }
         }
-        let spread = f.spread;
         put_scratch(scratch);
-        spread
     }
 }
 
@@ -539,9 +532,8 @@ fn run_end(key: &[u32], order: &[u32], offset: usize, i: usize) -> usize {
 
 impl KdAccel {
     /// Closest hits of a batch traced as frusta (see the module docs); `G` lanes per SIMD step.
-    /// Returns false when the batch is too small to be worth regrouping (then it wrote nothing)
-    /// or its rays come from many origins and prove too incoherent (then it may have written
-    /// some answers, which the caller overwrites).
+    /// Returns false, having written nothing, when the batch is too small to be worth
+    /// regrouping or its rays come from many origins too far apart ([`KdAccel::too_spread`]).
     #[inline(always)]
     pub(super) fn closest_frusta<const G: usize>(
         &self,
@@ -567,18 +559,25 @@ impl KdAccel {
             ..
         } = scratch;
         // `order` lists the rays permutation by permutation (invalid rays last), tile by tile.
-        f.spread = 0.0;
-        let mut frusta = 0;
-        let mut i = 0;
-        while i < n {
-            // Rays from many origins can be too incoherent for frusta: after the first two, if
-            // their origins spread too far, the batch goes as 4-ray packets instead (the answers
-            // are the same either way).
-            if !shared && frusta == 2 && f.spread > 2.0 * MAX_SPREAD {
+        let order = &order[..n];
+        if !shared {
+            let mut i = 0;
+            let runs = std::iter::from_fn(|| {
+                (i < n).then(|| {
+                    let end = run_end(key, order, 0, i);
+                    let rows = &order[i..end];
+                    i = end;
+                    rows
+                })
+            });
+            if self.too_spread(origins, key, runs) {
                 return false;
             }
+        }
+        let mut i = 0;
+        while i < n {
             let perm = key[order[i] as usize] >> 24;
-            let end = run_end(key, &order[..n], 0, i);
+            let end = run_end(key, order, 0, i);
             let rows = &order[i..end];
             if perm >= 6 {
                 for &r in rows {
@@ -594,7 +593,6 @@ impl KdAccel {
                     rows,
                 };
                 self.frustum::<G>(&rays, out_t, out_tri, false, f, stack, tmp);
-                frusta += 1;
             }
             i = end;
         }
@@ -680,28 +678,16 @@ impl KdAccel {
             };
             crate::simd::dispatch(level, k)
         };
-        // Rays from many origins: the first two frusta decide, as in `closest_frusta`, from
-        // their rays' origins (measured here rather than by tracing them first, so that every
-        // frustum goes to the threads at once; a lane that misses the root box counts too).
-        if !shared {
-            let (mut frusta, mut spread, mut r) = (0, 0.0, 0);
-            while r + 1 < runs.len() && frusta < 2 {
-                let rows = &order[runs[r] as usize..runs[r + 1] as usize];
-                if key[rows[0] as usize] >> 24 < 6 {
-                    frusta += 1;
-                    spread += self.origin_spread(origins, rows);
-                }
-                r += 1;
-            }
-            if r + 1 < runs.len() && spread > 2.0 * MAX_SPREAD {
-                return false;
-            }
+        // Rays from many origins: the first two frusta decide, as in `closest_frusta`.
+        let rows_of = runs
+            .windows(2)
+            .map(|w| &order[w[0] as usize..w[1] as usize]);
+        if !shared && self.too_spread(origins, key, rows_of) {
+            return false;
         }
-        let first = 0;
         let mut items = Vec::new();
-        let start = runs[first] as usize;
-        let (mut rest_t, mut rest_tri) = (&mut buf_t[start..], &mut buf_tri[start..]);
-        for a in (first..runs.len() - 1).step_by(RUNS_PER_ITEM) {
+        let (mut rest_t, mut rest_tri) = (&mut buf_t[..], &mut buf_tri[..]);
+        for a in (0..runs.len() - 1).step_by(RUNS_PER_ITEM) {
             let b = (a + RUNS_PER_ITEM).min(runs.len() - 1);
             let len = (runs[b] - runs[a]) as usize;
             let (t, tail_t) = std::mem::take(&mut rest_t).split_at_mut(len);
@@ -726,6 +712,30 @@ impl KdAccel {
                 }
             });
         true
+    }
+
+    /// Whether a batch from many origins is too incoherent for frusta (both entry points decide
+    /// with it, before tracing): the origins of its first two frusta (`runs`: the rays of each
+    /// run in tracing order; runs of rays the watertight test rejects do not count) spread more
+    /// than [`MAX_SPREAD`] on average, and more runs follow them. The caller then traces the
+    /// batch as 4-ray packets (the answers are the same either way).
+    fn too_spread<'r>(
+        &self,
+        origins: &[Vec3],
+        key: &[u32],
+        mut runs: impl Iterator<Item = &'r [u32]>,
+    ) -> bool {
+        let (mut frusta, mut spread) = (0, 0.0);
+        while frusta < 2 {
+            let Some(rows) = runs.next() else {
+                return false;
+            };
+            if key[rows[0] as usize] >> 24 < 6 {
+                frusta += 1;
+                spread += self.origin_spread(origins, rows);
+            }
+        }
+        runs.next().is_some() && spread > 2.0 * MAX_SPREAD
     }
 
     /// The spread of the finite origins of the rays `rows` ([`MAX_SPREAD`]): the L∞ extent of
@@ -943,11 +953,6 @@ impl KdAccel {
             f.inv_hi[a] = max_all::<G>(&only(&f.inv[a], f32::NEG_INFINITY));
             f.slack_hi[a] = max_all::<G>(&only(&f.slack[a], f32::NEG_INFINITY));
         }
-        let side = (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f32::max);
-        let extent = (0..3)
-            .map(|a| f.org_hi[a] - f.org_lo[a])
-            .fold(0.0, f32::max);
-        f.spread += extent / side;
         entry.lo = min_all::<G>(&entry.t0);
         entry.hi = max_all::<G>(&entry.t1);
         let lanes = entry.mask;
