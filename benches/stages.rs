@@ -25,7 +25,6 @@ use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::mesh::TriangleMesh;
 use wavefront::scene::builtin;
 use wavefront::{RenderOptions, Scene, Stage, World, render};
-use wavefront_kit::baseline::render_recursive;
 use wavefront_kit::bench::StageBench;
 use wavefront_kit::testkit::{sibenik_mesh, sibenik_scene};
 
@@ -111,42 +110,11 @@ fn frame(c: &mut Criterion, label: &str, scene: &Scene, world: &World) {
     group.finish();
 }
 
-/// The recursive baseline on the same scene, as `frame/baseline-LABEL`, then the ratio of the two
-/// medians of three interleaved runs each (criterion reports each figure on its own).
-fn baseline(c: &mut Criterion, label: &str, scene: &Scene, world: &World) {
-    let mut group = c.benchmark_group("frame");
-    group.sampling_mode(SamplingMode::Flat);
-    group.warm_up_time(Duration::from_millis(1));
-    group.bench_function(format!("baseline-{label}"), |b| {
-        b.iter(|| render_recursive(scene, world))
-    });
-    group.finish();
-    let (mut ours, mut theirs) = (vec![], vec![]);
-    for _ in 0..3 {
-        let start = Instant::now();
-        black_box(render(scene, world, RenderOptions::default(), |_, _| {}));
-        ours.push(start.elapsed().as_secs_f64());
-        let start = Instant::now();
-        black_box(render_recursive(scene, world));
-        theirs.push(start.elapsed().as_secs_f64());
-    }
-    let median = |v: &mut Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        v[1]
-    };
-    eprintln!(
-        "frame/{label}: wavefront speed-up over the recursive baseline {:.2}x (median of 3 interleaved runs)",
-        median(&mut theirs) / median(&mut ours)
-    );
-}
-
 fn frames(c: &mut Criterion) {
     let mut a = spheres();
     frame(c, "spheres-1spp", &a.scene, &a.world);
-    baseline(c, "spheres-1spp", &a.scene, &a.world);
     a.scene.image.samples = 64;
     frame(c, "spheres-64spp", &a.scene, &a.world);
-    baseline(c, "spheres-64spp", &a.scene, &a.world);
 
     if let Some(b) = sibenik_shadows() {
         // Both Sibenik scenes share geometry; they differ only in the schedule's shadow stage.

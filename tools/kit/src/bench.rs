@@ -9,9 +9,8 @@
 //! ([`wavefront::render_observed`]) with an observer that copies each stage's input as the
 //! schedule hands it over; [`StageBench::run`] then runs one stage on its snapshot through the
 //! schedule's own dispatch ([`schedule::run_stage`]). The CLI takes the best of R runs after one
-//! warm-up, criterion does its own sampling. With the `embree` feature, [`run`] also traces the
-//! same intersect and shadow ray arrays with the Embree peer (`peer::embree`, behind the `embree` feature) and
-//! reports project/Embree throughput ratios of the kernels alone.
+//! warm-up, criterion does its own sampling. Peers (a recursive C tracer, Embree 4) are measured
+//! outside the project, side by side in one run, by `../shared/peers/compare`.
 
 use std::fmt;
 use std::time::Instant;
@@ -36,7 +35,7 @@ pub struct DepthSnapshot {
     pub depth: u32,
     /// Input of `intersect`: this depth's rays.
     pub rays: RayQueue,
-    /// What `intersect_closest` returned for `rays` (one row per ray), kept to check peers.
+    /// What `intersect_closest` returned for `rays` (one row per ray).
     pub closest: HitColumns,
     /// Input of `shade` and `reflect`: the compacted hits, with the surface columns shade wrote
     /// (shade rewrites them with the same values, so one copy serves both stages).
@@ -109,7 +108,7 @@ impl Observer for Capture {
     }
 }
 
-/// Samples in the wave whose queues the stage kernels (and the Embree peer) are timed on: 2^16,
+/// Samples in the wave whose queues the stage kernels are timed on: 2^16,
 /// a queue far larger than a render's own waves (2^12 samples,
 /// [`wavefront::schedule::DEFAULT_WAVE_SAMPLES`]), so a kernel's throughput is measured rather
 /// than its fixed cost per call, and the same ray arrays as earlier sessions' figures (Sibenik:
@@ -299,61 +298,14 @@ pub fn best_of(repeat: usize, mut f: impl FnMut()) -> f64 {
 
 /// Median seconds of `repeat` runs (at least one) of `f`, without warm-up.
 pub fn median_of(repeat: usize, mut f: impl FnMut()) -> f64 {
-    median((0..repeat.max(1)).map(|_| seconds(&mut f)).collect())
-}
-
-/// Median seconds of `repeat` runs (at least one) of each of `a` and `b`, without warm-up, the
-/// runs alternating (a, b, a, b, …) so a change in the machine's load shows in both medians.
-pub fn interleaved_medians(repeat: usize, mut a: impl FnMut(), mut b: impl FnMut()) -> (f64, f64) {
-    let [ta, tb] = alternating_medians(repeat, &mut [&mut a, &mut b]);
-    (ta, tb)
-}
-
-/// Median seconds of `samples` runs (at least one) of each of `sides`, after one warm-up run
-/// of each, the runs alternating (side 0, 1, …, 0, 1, …) so a change in the machine's load
-/// shows in every median.
-pub fn interleaved_medians_of<const N: usize>(
-    samples: usize,
-    sides: &mut [&mut dyn FnMut(); N],
-) -> [f64; N] {
-    for f in sides.iter_mut() {
-        f();
-    }
-    alternating_medians(samples, sides)
-}
-
-/// Median seconds of `samples` runs (at least one) of each of `sides`, without warm-up, the
-/// runs alternating.
-fn alternating_medians<const N: usize>(
-    samples: usize,
-    sides: &mut [&mut dyn FnMut(); N],
-) -> [f64; N] {
-    let mut t = [(); N].map(|_| Vec::new());
-    for _ in 0..samples.max(1) {
-        for (f, t) in sides.iter_mut().zip(t.iter_mut()) {
-            t.push(seconds(f));
-        }
-    }
-    t.map(median)
+    let mut t: Vec<f64> = (0..repeat.max(1)).map(|_| seconds(&mut f)).collect();
+    median(&mut t)
 }
 
 /// The median of `t` (the upper one of an even count); `t` not empty.
-fn median(mut t: Vec<f64>) -> f64 {
+fn median(t: &mut [f64]) -> f64 {
     t.sort_by(f64::total_cmp);
     t[t.len() / 2]
-}
-
-/// Laps over the mirror reflection set per timed sample: at least 2,048 rays a sample (one lap
-/// of Sibenik's 3,951 rays, under a millisecond: short enough that most samples see no other
-/// process take the core, long enough for the timer).
-pub fn reflect_laps(rays: usize) -> usize {
-    2048usize.div_ceil(rays.max(1))
-}
-
-/// Samples per side of the mirror reflection set for `--repeat repeat`: 60 per repeat, odd, at
-/// least 101 (the median of many short samples rides out load spikes).
-pub fn reflect_samples(repeat: usize) -> usize {
-    (60 * repeat.max(1)).max(101) | 1
 }
 
 fn seconds(f: &mut impl FnMut()) -> f64 {
@@ -371,7 +323,7 @@ pub fn mrays_per_s(rays: usize, seconds: f64) -> f64 {
     }
 }
 
-/// One stage (or peer) measurement: one JSON line of `wavefront bench --json`.
+/// One stage measurement: one JSON line of `wavefront bench --json`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Record {
     /// Scene name.
@@ -388,32 +340,6 @@ pub struct Record {
     pub seconds: f64,
     /// `rays / seconds`, in millions.
     pub mrays_per_s: f64,
-    /// Peer rows: Mrays/s of the project's own kernel alone (`intersect_closest` or
-    /// `intersect_occluded`, without compaction or accumulation) on the same rays, same run.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub project_mrays_per_s: Option<f64>,
-    /// Peer rows: which peer traced the same rays (e.g. `embree-intersect1`).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub peer: Option<String>,
-    /// Peer rows: project Mrays/s ÷ peer Mrays/s (above 1: the project is faster).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub ratio: Option<f64>,
-    /// Peer closest-hit rows: rays whose triangle differs from the project's beyond an exact tie
-    /// (`t` differs by more than 1e-5 relative, or one side misses).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub mismatches: Option<usize>,
-    /// Peer closest-hit rows: the mismatches where one side hits and the other misses.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub hit_miss: Option<usize>,
-    /// Peer closest-hit rows: rays whose triangle differs at the same `t` (exact ties).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub ties: Option<usize>,
-    /// Peer occlusion rows: rays the peer found occluded.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub occluded: Option<usize>,
-    /// Peer occlusion rows: rays the project found occluded.
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub occluded_project: Option<usize>,
 }
 
 impl Record {
@@ -426,14 +352,6 @@ impl Record {
             rays,
             seconds: s,
             mrays_per_s: mrays_per_s(rays, s),
-            project_mrays_per_s: None,
-            peer: None,
-            ratio: None,
-            mismatches: None,
-            hit_miss: None,
-            ties: None,
-            occluded: None,
-            occluded_project: None,
         }
     }
 
@@ -449,10 +367,7 @@ impl Record {
 pub struct Timing {
     /// Scene name.
     pub scene: String,
-    /// What was timed: `frame` (median of R renders), `baseline_recursive` (the recursive f32
-    /// tracer of [`crate::baseline`] on the same scene and pool, median of R runs alternating
-    /// with the frame's), `load_obj`, `tree` (as loaded), `build_sah` (best of R),
-    /// `embree_build` (best of R).
+    /// What was timed: `frame` (median of R renders), `load_obj`, `tree` (as loaded).
     pub timing: String,
     /// Worker threads.
     pub threads: usize,
@@ -491,11 +406,9 @@ pub struct Report {
     pub repeat: usize,
     /// Stage rows, in schedule order.
     pub stages: Vec<Record>,
-    /// Peer rows (empty without a peer).
-    pub peers: Vec<Record>,
     /// Frame, load and build timings.
     pub timings: Vec<Timing>,
-    /// Remarks for the reader (skipped peers, multi-wave snapshots).
+    /// Remarks for the reader (cache hits, multi-wave snapshots).
     pub notes: Vec<String>,
     /// How close the frame runs to the memory-bandwidth bound.
     pub traffic: Option<Traffic>,
@@ -578,7 +491,7 @@ impl Report {
     /// All records and timings, one JSON object per line.
     pub fn json_lines(&self) -> String {
         let mut s = String::new();
-        for r in self.stages.iter().chain(&self.peers) {
+        for r in &self.stages {
             s.push_str(&r.to_json());
             s.push('\n');
         }
@@ -625,15 +538,6 @@ impl fmt::Display for Report {
                 t.seconds * 1e3,
                 t.runs
             )?;
-            if let Some(b) = self.timing("baseline_recursive") {
-                writeln!(
-                    f,
-                    "recursive baseline: {:.2} ms (median of {}); wavefront speed-up over it: {:.2}x",
-                    b.seconds * 1e3,
-                    b.runs,
-                    b.seconds / t.seconds
-                )?;
-            }
         }
         if let Some(t) = &self.traffic {
             writeln!(
@@ -655,43 +559,6 @@ impl fmt::Display for Report {
                 t.seconds * 1e3
             )?;
         }
-        if !self.peers.is_empty() {
-            writeln!(
-                f,
-                "{:<20} {:<10} {:>5} {:>10} {:>10} {:>10} {:>15}  agreement",
-                "peer", "stage", "depth", "rays", "ms", "Mrays/s", "project/peer"
-            )?;
-            for r in &self.peers {
-                let agreement = match (r.mismatches, r.ties, r.occluded, r.occluded_project) {
-                    (Some(m), Some(t), _, _) => format!(
-                        "{m} mismatches ({} hit/miss), {t} exact ties",
-                        r.hit_miss.unwrap_or(0)
-                    ),
-                    (_, _, Some(o), Some(p)) => format!("{o} occluded (project {p})"),
-                    _ => String::new(),
-                };
-                writeln!(
-                    f,
-                    "{:<20} {:<10} {:>5} {:>10} {:>10.3} {:>10.1} {:>15.3}  {agreement}",
-                    r.peer.as_deref().unwrap_or("?"),
-                    r.stage,
-                    r.depth,
-                    r.rays,
-                    r.seconds * 1e3,
-                    r.mrays_per_s,
-                    r.ratio.unwrap_or(f64::NAN),
-                )?;
-            }
-        }
-        if let (Some(e), Some(s)) = (self.timing("embree_build"), self.timing("build_sah")) {
-            writeln!(
-                f,
-                "build: Embree BVH {:.1} ms vs SAH kD tree {:.1} ms (best of {})",
-                e.seconds * 1e3,
-                s.seconds * 1e3,
-                e.runs
-            )?;
-        }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
         }
@@ -708,14 +575,10 @@ pub enum BenchError {
     /// The rayon pool could not start.
     #[error("cannot start the thread pool")]
     Pool(#[from] rayon::ThreadPoolBuildError),
-    /// The peer could not build its scene.
-    #[error("peer: {0}")]
-    Peer(String),
 }
 
-/// Loads `scene`, snapshots its first wave and times every stage, a full frame and (with the
-/// `embree` feature, for pure triangle scenes) the Embree peer, all on a pool of
-/// `config.threads` threads.
+/// Loads `scene`, snapshots its first wave and times every stage and a full frame, all on a pool
+/// of `config.threads` threads.
 pub fn run(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
     let pool = rayon::ThreadPoolBuilder::new()
         .num_threads(config.threads.max(1))
@@ -756,16 +619,9 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     }
 
     // The frame as `render` traces it: no stage observer, so one wave per thread at once.
-    // The frame and the recursive baseline alternate, so both medians see the same machine.
-    let (frame, baseline) = interleaved_medians(
-        repeat,
-        || {
-            render_observed(scene, &world, &RenderOptions::default(), ());
-        },
-        || {
-            std::hint::black_box(crate::baseline::render_recursive(scene, &world));
-        },
-    );
+    let frame = median_of(repeat, || {
+        render_observed(scene, &world, &RenderOptions::default(), ());
+    });
     if world.triangles().is_none() {
         // Queue traffic counted on one more, untimed, render (the meter watches every stage).
         let mut traffic = TrafficMeter::default();
@@ -783,13 +639,6 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     report
         .timings
         .push(timing(scene, "frame", threads, frame, repeat));
-    report.timings.push(timing(
-        scene,
-        "baseline_recursive",
-        threads,
-        baseline,
-        repeat,
-    ));
     if world.triangles().is_some() {
         report
             .timings
@@ -797,7 +646,6 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
         report
             .timings
             .push(timing(scene, "tree", threads, setup.tree_seconds, 1));
-        peers(scene, &world, &bench.snapshot, repeat, &mut report)?;
     }
     Ok(report)
 }
@@ -812,339 +660,9 @@ fn timing(scene: &Scene, name: &str, threads: usize, seconds: f64, runs: usize) 
     }
 }
 
-#[cfg(not(feature = "embree"))]
-fn peers(
-    _scene: &Scene,
-    _world: &World,
-    _snapshot: &Snapshot,
-    _repeat: usize,
-    report: &mut Report,
-) -> Result<(), BenchError> {
-    report
-        .notes
-        .push("Embree peer not built (rebuild with `--features embree`)".into());
-    Ok(())
-}
-
-/// Traces the snapshot's intersect and shadow rays with Embree and adds peer rows and build times.
-#[cfg(feature = "embree")]
-fn peers(
-    scene: &Scene,
-    world: &World,
-    snapshot: &Snapshot,
-    repeat: usize,
-    report: &mut Report,
-) -> Result<(), BenchError> {
-    use crate::peer::embree::{EmbreeScene, TraceOpts};
-    use bytemuck::cast_slice;
-    use wavefront::accel::kdtree::{BuildMethod, KdTree};
-
-    use wavefront::stages::intersect::{ClosestOut, ClosestRays, intersect_closest};
-    use wavefront::stages::shadow::{ShadowTrace, intersect_occluded};
-
-    let Some(tris) = world.triangles() else {
-        return Ok(());
-    };
-    if !world.spheres().is_empty() || !world.planes().is_empty() {
-        report.notes.push(
-            "Embree peer skipped: the scene has spheres or planes, the peer only triangles".into(),
-        );
-        return Ok(());
-    }
-    let threads = report.threads;
-    let config = format!("threads={threads}");
-    let (v, idx) = (&tris.mesh().vertices, &tris.mesh().indices);
-    let embree = EmbreeScene::with_config(v, idx, &config).map_err(BenchError::Peer)?;
-    let mut build = embree.build_seconds();
-    for _ in 1..repeat {
-        let s = EmbreeScene::with_config(v, idx, &config).map_err(BenchError::Peer)?;
-        build = build.min(s.build_seconds());
-    }
-    report
-        .timings
-        .push(timing(scene, "embree_build", threads, build, repeat));
-    let sah = best_of(repeat, || {
-        std::hint::black_box(KdTree::build(tris.mesh(), BuildMethod::Sah));
-    });
-    report
-        .timings
-        .push(timing(scene, "build_sah", threads, sah, repeat));
-
-    let opts = TraceOpts::parallel();
-    let mut rows = vec![];
-    for d in &snapshot.depths {
-        // The project's kernels alone on the same rays, timed in the same run as the peer.
-        let mut closest = HitColumns::default();
-        let ours_closest = mrays_per_s(
-            d.rays.len(),
-            best_of(repeat, || {
-                intersect_closest(
-                    world,
-                    ClosestRays::of(&d.rays),
-                    ClosestOut::of(&mut closest),
-                )
-            }),
-        );
-        let mut shadows = d.shadows.clone().unwrap_or_default();
-        let ours_occluded = mrays_per_s(
-            shadows.len(),
-            best_of(repeat, || {
-                intersect_occluded(world, ShadowTrace::of(&mut shadows))
-            }),
-        );
-        let peer_row = |name: &str, stage: Stage, rays: usize, s: f64| {
-            let mut r = Record::new(&scene.name, stage, d.depth, threads, rays, s);
-            let ours = if stage == Stage::Shadow {
-                ours_occluded
-            } else {
-                ours_closest
-            };
-            r.peer = Some(name.into());
-            r.project_mrays_per_s = Some(ours);
-            r.ratio = Some(ours / r.mrays_per_s);
-            r
-        };
-        let (o, dir) = (cast_slice(&d.rays.origin), cast_slice(&d.rays.direction));
-        let n = d.rays.len();
-        let (mut t, mut prim) = (vec![0.0; n], vec![0u32; n]);
-        for (name, stream) in [("embree-intersect1", false), ("embree-intersect1m", true)] {
-            let s = best_of(repeat, || {
-                if stream {
-                    embree.intersect1m_with(opts, o, dir, &d.rays.t_max, &mut t, &mut prim)
-                } else {
-                    embree.intersect1_with(opts, o, dir, &d.rays.t_max, &mut t, &mut prim)
-                }
-            });
-            let mut r = peer_row(name, Stage::Intersect, n, s);
-            let c = compare_closest(&d.closest, &t, &prim);
-            (r.mismatches, r.hit_miss, r.ties) =
-                (Some(c.mismatches), Some(c.hit_miss), Some(c.ties));
-            rows.push(r);
-        }
-        if let Some(sh) = &d.shadows {
-            let (o, dir) = (cast_slice(&sh.origin), cast_slice(&sh.direction));
-            let mut occ = vec![false; sh.len()];
-            for (name, stream) in [("embree-occluded1", false), ("embree-occluded1m", true)] {
-                let s = best_of(repeat, || {
-                    if stream {
-                        embree.occluded1m_with(opts, o, dir, &sh.t_max, &mut occ)
-                    } else {
-                        embree.occluded1_with(opts, o, dir, &sh.t_max, &mut occ)
-                    }
-                });
-                let mut r = peer_row(name, Stage::Shadow, sh.len(), s);
-                let ours = sh.occluded.iter().filter(|&&b| b).count();
-                let theirs = occ.iter().filter(|&&b| b).count();
-                (r.occluded, r.occluded_project) = (Some(theirs), Some(ours));
-                if ours.abs_diff(theirs) as f64 > 1e-4 * sh.len() as f64 {
-                    report.notes.push(format!(
-                        "{name} depth {}: occluded counts differ by more than 0.01%: \
-                         embree {theirs}, project {ours} of {}",
-                        d.depth,
-                        sh.len()
-                    ));
-                }
-                rows.push(r);
-            }
-        }
-    }
-    if let Some(depth0) = snapshot.depth(0) {
-        mirror_reflections(scene, depth0, repeat, threads, &config, &mut rows, report)?;
-    }
-    for r in &rows {
-        if r.mismatches.is_some_and(|m| m > 0) {
-            report.notes.push(format!(
-                "{} depth {}: {} rays hit a different triangle at a t more than 1e-5 apart \
-                 ({} of them hit on one side and miss on the other)",
-                r.peer.as_deref().unwrap_or("?"),
-                r.depth,
-                r.mismatches.unwrap_or(0),
-                r.hit_miss.unwrap_or(0)
-            ));
-        }
-    }
-    report.peers = rows;
-    Ok(())
-}
-
-/// The incoherent closest-hit set: the scene's mesh with a mirror floor added (two triangles
-/// spanning the mesh's horizontal extent, 1% of its height above the floor the camera sees), the
-/// snapshot's camera rays traced against it, and at every camera ray that hits the mirror a
-/// reflection ray (origin on the mirror, nudged up by 1e-4 of the scene's extent; direction
-/// reflected about the mirror's normal, `+y`; no `t_max`). Times the project's `intersect`
-/// kernel and Embree's `rtcIntersect1` / `rtcIntersect1M` on those rays in the same run, the
-/// same way ([`interleaved_medians_of`] over samples of [`reflect_laps`] laps of the set), and
-/// adds peer rows (depth 1, peer names `embree-reflect1`, `embree-reflect1m`).
-#[cfg(feature = "embree")]
-fn mirror_reflections(
-    scene: &Scene,
-    camera: &DepthSnapshot,
-    repeat: usize,
-    threads: usize,
-    config: &str,
-    rows: &mut Vec<Record>,
-    report: &mut Report,
-) -> Result<(), BenchError> {
-    use crate::peer::embree::{EmbreeScene, TraceOpts};
-    use bytemuck::cast_slice;
-    use glam::Vec3;
-    use wavefront::accel::kdtree::BuildMethod;
-    use wavefront::mesh::TriangleMesh;
-    use wavefront::queue::{RayItem, SampleSlot};
-    use wavefront::stages::intersect::{ClosestOut, ClosestRays, intersect_closest};
-
-    let Some(spec) = scene.meshes.first() else {
-        return Ok(());
-    };
-    let mut mesh = TriangleMesh::load_obj(&spec.path)
-        .map_err(|e| BenchError::Peer(format!("mirror set: {}", wavefront::error::chain(&e))))?;
-    let (lo, hi) = mesh.bounds();
-    // The floor: the 2nd percentile of the camera rays' hit heights (world `y`), raised by 1%
-    // of the mesh's height so the mirror covers it.
-    let eye_y = scene.camera.eye.y as f32;
-    let mut heights: Vec<f32> = (0..camera.rays.len())
-        .filter(|&i| camera.closest.prim[i].is_hit())
-        .map(|i| (camera.rays.origin[i] + camera.rays.direction[i] * camera.closest.t[i]).y + eye_y)
-        .collect();
-    if heights.is_empty() {
-        return Ok(());
-    }
-    heights.sort_by(f32::total_cmp);
-    let y = heights[heights.len() / 50] + 0.01 * (hi.y - lo.y);
-    let base = mesh.vertices.len() as u32;
-    mesh.vertices.extend([
-        [lo.x, y, lo.z],
-        [hi.x, y, lo.z],
-        [hi.x, y, hi.z],
-        [lo.x, y, hi.z],
-    ]);
-    let mirror = [mesh.len() as u32, mesh.len() as u32 + 1];
-    mesh.indices
-        .extend([[base, base + 1, base + 2], [base, base + 2, base + 3]]);
-    let world = World::with_mesh(scene, &mesh, BuildMethod::Sah);
-    let Some(tris) = world.triangles() else {
-        return Ok(());
-    };
-    let (v, idx) = (&tris.mesh().vertices, &tris.mesh().indices);
-    let mirror_y = v[base as usize][1];
-    let nudge = 1e-4 * (hi - lo).max_element();
-    // Camera rays against the mirrored scene; reflection rays where they meet the mirror.
-    let mut hits = HitColumns::default();
-    intersect_closest(
-        &world,
-        ClosestRays::of(&camera.rays),
-        ClosestOut::of(&mut hits),
-    );
-    let mut rays = RayQueue::default();
-    for i in 0..camera.rays.len() {
-        if !mirror.contains(&hits.prim[i].0) {
-            continue;
-        }
-        let (o, d) = (camera.rays.origin[i], camera.rays.direction[i]);
-        let p = o + d * hits.t[i];
-        rays.push(RayItem {
-            origin: Vec3::new(p.x, mirror_y + nudge, p.z),
-            direction: Vec3::new(d.x, -d.y, d.z),
-            t_max: f32::INFINITY,
-            weight: Vec3::ONE,
-            slot: SampleSlot(i as u32),
-        });
-    }
-    let n = rays.len();
-    if n == 0 {
-        report
-            .notes
-            .push("mirror reflections: no camera ray hits the mirror floor".into());
-        return Ok(());
-    }
-    let mut ours = HitColumns::default();
-    let embree = EmbreeScene::with_config(v, idx, config).map_err(BenchError::Peer)?;
-    let opts = TraceOpts::parallel();
-    let (o, dir) = (cast_slice(&rays.origin), cast_slice(&rays.direction));
-    let (mut t1, mut prim1) = (vec![0.0; n], vec![0u32; n]);
-    let (mut tm, mut primm) = (vec![0.0; n], vec![0u32; n]);
-    // The set is small (a few thousand rays, well under a millisecond): one sample traces it
-    // `laps` times (the same rays each lap), the three sides' samples alternate, and each
-    // side's time is the median of its samples.
-    let laps = reflect_laps(n);
-    let samples = reflect_samples(repeat);
-    let mut sides: [&mut dyn FnMut(); 3] = [
-        &mut || {
-            for _ in 0..laps {
-                intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut ours));
-            }
-        },
-        &mut || {
-            for _ in 0..laps {
-                embree.intersect1_with(opts, o, dir, &rays.t_max, &mut t1, &mut prim1);
-            }
-        },
-        &mut || {
-            for _ in 0..laps {
-                embree.intersect1m_with(opts, o, dir, &rays.t_max, &mut tm, &mut primm);
-            }
-        },
-    ];
-    let [s_ours, s_1, s_1m] = interleaved_medians_of(samples, &mut sides).map(|s| s / laps as f64);
-    let ours_mrays = mrays_per_s(n, s_ours);
-    for (name, s, t, prim) in [
-        ("embree-reflect1", s_1, &t1, &prim1),
-        ("embree-reflect1m", s_1m, &tm, &primm),
-    ] {
-        let mut r = Record::new(&scene.name, Stage::Intersect, 1, threads, n, s);
-        r.peer = Some(name.into());
-        r.project_mrays_per_s = Some(ours_mrays);
-        r.ratio = Some(ours_mrays / r.mrays_per_s);
-        let c = compare_closest(&ours, t, prim);
-        (r.mismatches, r.hit_miss, r.ties) = (Some(c.mismatches), Some(c.hit_miss), Some(c.ties));
-        rows.push(r);
-    }
-    let hit = ours.prim.iter().filter(|p| p.is_hit()).count();
-    report.notes.push(format!(
-        "embree-reflect rows: {n} reflection rays off a mirror floor added to the mesh \
-         (of {} camera rays), {hit} of them hit; project {ours_mrays:.1} Mrays/s; each side \
-         timed as the median of {samples} samples of {laps} lap(s) over the same rays, the \
-         three sides' samples alternating (one warm-up sample each)",
-        camera.rays.len()
-    ));
-    Ok(())
-}
-
-/// How a peer's closest hits differ from the project's.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct ClosestAgreement {
-    /// Rays with a different primitive whose `t` differs by more than 1e-5 relative (a hit
-    /// against a miss included).
-    pub mismatches: usize,
-    /// The mismatches where exactly one side misses (e.g. rays through a shared edge).
-    pub hit_miss: usize,
-    /// Rays with a different primitive at a `t` within 1e-5 relative (exact ties).
-    pub ties: usize,
-}
-
-/// Compares a peer's closest hits (`t`, primitive id or `u32::MAX` for a miss) with the
-/// project's, row for row.
-pub fn compare_closest(project: &HitColumns, t: &[f32], prim: &[u32]) -> ClosestAgreement {
-    let mut c = ClosestAgreement::default();
-    for i in 0..t.len() {
-        if project.prim[i].0 == prim[i] {
-            continue;
-        }
-        let (a, b) = (project.t[i], t[i]);
-        if a.is_finite() && b.is_finite() && (a - b).abs() <= 1e-5 * a.abs().max(b.abs()) {
-            c.ties += 1;
-        } else {
-            c.mismatches += 1;
-            c.hit_miss += usize::from(a.is_finite() != b.is_finite());
-        }
-    }
-    c
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-    use wavefront::queue::PrimId;
     use wavefront::render;
     use wavefront::scene::builtin::spheres;
 
@@ -1299,10 +817,7 @@ mod tests {
                 assert!((back.mrays_per_s - orig.mrays_per_s).abs() <= 1e-9 * orig.mrays_per_s);
             } else {
                 let timing = v["timing"].as_str().unwrap();
-                assert!(
-                    ["frame", "baseline_recursive"].contains(&timing),
-                    "{timing}"
-                );
+                assert!(["frame"].contains(&timing), "{timing}");
             }
         }
         assert_eq!(stages, report.stages.len());
@@ -1312,21 +827,5 @@ mod tests {
         );
         let text = report.to_string();
         assert!(text.contains("intersect") && text.contains("frame:"));
-        assert!(
-            text.contains("speed-up over it"),
-            "the baseline ratio is printed"
-        );
-    }
-
-    #[test]
-    fn closest_hit_comparison_separates_ties_from_mismatches() {
-        let project = HitColumns {
-            t: vec![1.0, 2.0, 3.0, f32::INFINITY, 5.0],
-            prim: [0, 1, 2, u32::MAX, 4].map(PrimId).to_vec(),
-        };
-        let t = [1.0, 2.0, 3.5, 4.0, 5.0 * (1.0 + 1e-6)];
-        let prim = [0, 7, 9, 3, 8];
-        let c = compare_closest(&project, &t, &prim);
-        assert_eq!((c.mismatches, c.hit_miss, c.ties), (2, 1, 2));
     }
 }

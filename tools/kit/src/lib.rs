@@ -1,13 +1,12 @@
 //! # wavefront-kit
 //!
 //! The measuring tools around the [`wavefront`] renderer, kept out of its library: the
-//! independent f64 [`oracle`], the recursive f32 [`baseline`] tracer, the per-stage benchmark runner ([`mod@bench`]), the
-//! error-against-run-time [`report`], the Embree [`peer`] and the fixtures the test suites share
-//! ([`testkit`]). The renderer never depends on this crate.
+//! independent f64 [`oracle`], the per-stage benchmark runner ([`mod@bench`]), the
+//! error-against-run-time [`report`] and the fixtures the test suites share ([`testkit`]). The
+//! renderer never depends on this crate. Peers (a recursive C tracer, Embree 4) are not part of
+//! the project: `../shared/peers/compare` measures against them side by side.
 
-pub mod baseline;
 pub mod bench;
 pub mod oracle;
-pub mod peer;
 pub mod report;
 pub mod testkit;

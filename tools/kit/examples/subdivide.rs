@@ -2,7 +2,7 @@
 //! (shared edges share their midpoint), `LEVELS` times, written as `v`/`f` OBJ lines. Used for the
 //! README's million-triangle figures; the output belongs in /tmp, never in the repository.
 //!
-//!     cargo run --release -p wavefront-kit --bin subdivide -- SIBENIK.obj 2 /tmp/sibenik16.obj
+//!     cargo run --release -p wavefront-kit --example subdivide -- SIBENIK.obj 2 /tmp/sibenik16.obj
 
 use std::collections::HashMap;
 use std::io::Write;
