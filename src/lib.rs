@@ -30,9 +30,7 @@
 //! row on a writer thread ([`output::ImageStream`]).
 //!
 //! `unsafe` code is denied crate-wide; one module opts out, [`simd`] (run-time dispatch to
-//! AVX2/AVX-512 builds of a kernel, and the SSE2 lanes of the kD-tree packet traversal), and so
-//! does the Embree FFI peer outside the library (`wavefront-kit`'s `peer::embree`, behind a
-//! feature).
+//! AVX2/AVX-512 builds of a kernel, and the SSE2 lanes of the kD-tree packet traversal).
 #![deny(unsafe_code)]
 
 pub mod accel;
