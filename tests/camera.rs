@@ -134,7 +134,7 @@ fn frames_between_keys_interpolate_in_f64() {
     assert_ne!(render_png_bytes(&mid), render_png_bytes(&path));
     let e = path.at_frame(11).unwrap_err().to_string();
     assert!(
-        e.contains("frame 11 is outside the camera path's keys (0..=10)"),
+        e.contains("frame 11 is outside the camera path's frames (0..=10)"),
         "{e}"
     );
 }
@@ -161,9 +161,10 @@ fn one_world_serves_every_frame_of_a_path_over_a_mesh() {
             fov_y: 60.0,
         },
     };
-    scene.camera_path = Some(CameraPath {
-        keys: vec![key(0, [10.0, -8.0, 2.0]), key(4, [2.0, -6.0, -3.0])],
-    });
+    scene.camera_path = Some(CameraPath::linear(vec![
+        key(0, [10.0, -8.0, 2.0]),
+        key(4, [2.0, -6.0, -3.0]),
+    ]));
     let first = scene.at_frame(0).unwrap();
     let world = World::load(&first).unwrap();
     for frame in [2, 4] {
@@ -179,5 +180,116 @@ fn one_world_serves_every_frame_of_a_path_over_a_mesh() {
             shared.to_rgb8(at.image.gamma) == own,
             "frame {frame} differs when rendered with the first frame's world"
         );
+    }
+}
+
+/// Scene A's text with its `[camera]` table replaced by `camera` (for error cases).
+fn spheres_text_with_camera(camera: &str) -> String {
+    SPHERES.replace(
+        &format!("[camera]\neye = [0.0, 0.0, 0.0]\n{EXPLICIT}"),
+        camera,
+    )
+}
+
+const ORBIT: &str = "[camera.orbit]
+look_at = [0.0, 0.0, -7.0]
+eye = [0.0, 1.0, 2.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 60.0
+frames = 24
+turns = 0.5";
+
+#[test]
+fn an_orbits_frame_0_renders_as_its_static_camera_and_every_frame_keeps_the_distance() {
+    let orbit = spheres_with_camera(ORBIT);
+    let path = orbit
+        .camera_path
+        .as_ref()
+        .expect("an orbit is a camera path");
+    assert_eq!((path.first_frame(), path.last_frame()), (0, 23));
+    let fixed = spheres_with_camera(
+        "[camera]\neye = [0.0, 1.0, 2.0]\nlook_at = [0.0, 0.0, -7.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 60.0",
+    );
+    let first = orbit.at_frame(0).unwrap();
+    assert_eq!(first.camera, fixed.camera);
+    assert!(render_png_bytes(&first) == render_png_bytes(&fixed));
+    let r0 = (glam::DVec3::new(0.0, 1.0, 2.0) - glam::DVec3::new(0.0, 0.0, -7.0)).length();
+    for f in 0..24 {
+        let v = path.view_at(f).unwrap();
+        let r = (v.eye - v.look_at).length();
+        assert!((r - r0).abs() <= 1e-9 * r0, "frame {f}: {r} vs {r0}");
+    }
+    // Half a turn over 24 frames: frame 12 is a quarter turn about +y, eye (9, 1, -7).
+    let quarter = path.view_at(12).unwrap().eye;
+    assert!(
+        (quarter - glam::DVec3::new(9.0, 1.0, -7.0)).length() < 1e-14,
+        "{quarter}"
+    );
+    assert!(orbit.at_frame(24).is_err());
+}
+
+#[test]
+fn a_catmull_rom_key_frame_renders_as_the_key_and_frames_between_bend() {
+    let text = spheres_text_with_camera(
+        "[camera]
+interpolation = \"catmull-rom\"
+
+[[camera.key]]
+frame = 0
+eye = [0.0, 0.0, 0.0]
+look_at = [0.0, 0.0, -7.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 90.0
+
+[[camera.key]]
+frame = 4
+eye = [2.0, 1.0, 1.0]
+look_at = [0.0, -0.5, -7.0]
+up = [0.1, 1.0, 0.0]
+fov_y = 60.0
+
+[[camera.key]]
+frame = 10
+eye = [-1.5, 0.5, 0.3]
+look_at = [0.0, 0.0, -7.0]
+up = [0.0, 1.0, 0.2]
+fov_y = 75.5",
+    );
+    let smooth = parse(&text, Path::new("spheres.toml")).unwrap();
+    let linear = path_scene();
+    for frame in [0, 4, 10] {
+        let (a, b) = (
+            smooth.at_frame(frame).unwrap(),
+            linear.at_frame(frame).unwrap(),
+        );
+        assert_eq!(a.camera, b.camera, "frame {frame} is its key");
+        assert!(render_png_bytes(&a) == render_png_bytes(&b));
+    }
+    // Between keys the spline leaves the chord; `up` and `fov_y` stay linear.
+    let (a, b) = (smooth.at_frame(2).unwrap(), linear.at_frame(2).unwrap());
+    assert_ne!(a.camera.eye, b.camera.eye);
+    assert_eq!((a.camera.t, a.camera.b), (b.camera.t, b.camera.b));
+}
+
+#[test]
+fn bad_orbits_and_interpolations_name_line_and_key() {
+    let cases = [
+        (format!("{ORBIT}\n\n[[camera.key]]\nframe = 0\neye = [0.0, 0.0, 0.0]\nlook_at = [0.0, 0.0, -7.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 90.0"),
+         "camera.key: cannot be combined with [camera.orbit]"),
+        (format!("[camera]\neye = [0.0, 0.0, 0.0]\n\n{ORBIT}"), "camera.eye: cannot be combined with [camera.orbit]"),
+        (ORBIT.replace("frames = 24", "frames = 0"), "camera.orbit.frames: 0 is out of range"),
+        (ORBIT.replace("turns = 0.5", "turns = nan"), "camera.orbit.turns"),
+        (ORBIT.replace("up = [0.0, 1.0, 0.0]", "up = [0.0, 2.0, 18.0]"), "camera.orbit.up"),
+        (ORBIT.replace("fov_y = 60.0\n", ""), "missing field `fov_y`"),
+        ("[camera]\ninterpolation = \"linear\"\neye = [0.0, 0.0, 0.0]\nlook_at = [0.0, 0.0, -7.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 90.0".into(),
+         "camera.interpolation: only meaningful with [[camera.key]]"),
+        ("[camera]\ninterpolation = \"cubic\"\n\n[[camera.key]]\nframe = 0\neye = [0.0, 0.0, 0.0]\nlook_at = [0.0, 0.0, -7.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 90.0".into(),
+         "camera.interpolation: unknown value \"cubic\""),
+    ];
+    for (camera, expect) in cases {
+        let text = spheres_text_with_camera(&camera);
+        let e = parse(&text, Path::new("s.toml")).unwrap_err().to_string();
+        assert!(e.contains(expect), "{camera}\n-> {e}");
+        assert!(e.starts_with("s.toml:"), "names the file and line: {e}");
     }
 }

@@ -57,6 +57,17 @@ path = "mesh.obj"
 material = "m"
 "#;
 
+/// An orbit, for the keys of `[camera.orbit]`.
+const ORBIT: &str = r#"
+[camera.orbit]
+{camera.orbit}
+look_at = [0.0, 0.0, -7.0]
+eye = [0.0, 1.0, 2.0]
+up = [0.0, 1.0, 0.0]
+fov_y = 60.0
+frames = 4
+"#;
+
 /// A camera path, for the keys of `[[camera.key]]`.
 const PATH: &str = r#"
 [camera]
@@ -69,12 +80,13 @@ up = [0.0, 1.0, 0.0]
 fov_y = 60.0
 "#;
 
-const TABLES: [&str; 11] = [
+const TABLES: [&str; 12] = [
     "",
     "image",
     "camera",
     "camera.window",
     "camera.key",
+    "camera.orbit",
     "render",
     "light",
     "material.NAME",
@@ -85,7 +97,11 @@ const TABLES: [&str; 11] = [
 
 /// The scene text with `zz = 1` injected into `table` and every other marker removed.
 fn injected(table: &str) -> String {
-    let template = if table == "camera.key" { PATH } else { SCENE };
+    let template = match table {
+        "camera.key" => PATH,
+        "camera.orbit" => ORBIT,
+        _ => SCENE,
+    };
     let mut text = template.to_owned();
     for t in TABLES {
         let marker = if t.is_empty() {
@@ -154,7 +170,7 @@ fn documented_keys(page: &str) -> BTreeMap<String, BTreeSet<String>> {
 
 #[test]
 fn the_template_scene_is_valid() {
-    for template in [SCENE, PATH] {
+    for template in [SCENE, PATH, ORBIT] {
         let mut text = template.to_owned();
         for t in TABLES {
             let marker = if t.is_empty() {

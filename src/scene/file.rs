@@ -3,8 +3,8 @@
 //! Every error names the file, the 1-based line and the key. Unknown keys are errors, numbers must
 //! be finite and fit an `f32`, directions must be non-zero, radii positive, materials defined.
 //! Relative paths are resolved against the scene file's directory. `[camera]` is the explicit
-//! camera, the look-at form ([`super::lookat`]) or a camera path of `[[camera.key]]` entries
-//! ([`super::camera_path`]), never a mix.
+//! camera, the look-at form ([`super::lookat`]), a camera path of `[[camera.key]]` entries or
+//! an orbit (`[camera.orbit]`, [`super::camera_path`]), never a mix.
 
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -14,7 +14,7 @@ use glam::{DVec3, Vec3};
 use serde::Deserialize;
 use toml::Spanned;
 
-use super::camera_path::CameraKey;
+use super::camera_path::{CameraKey, Interpolation, Orbit};
 use super::lookat::LookAt;
 use super::{
     Camera, CameraPath, ImageSettings, Material, MeshRef, Normals, OffsetMethod, Plane, PointLight,
@@ -91,6 +91,20 @@ struct RawCamera {
     up: Option<V3>,
     fov_y: Option<Spanned<f64>>,
     key: Option<Vec<Spanned<RawKey>>>,
+    interpolation: Option<Spanned<String>>,
+    orbit: Option<Spanned<RawOrbit>>,
+}
+
+/// `[camera.orbit]`: the eye circles `look_at` about `up` (SPEC §10).
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RawOrbit {
+    look_at: V3,
+    eye: V3,
+    up: V3,
+    fov_y: Spanned<f64>,
+    frames: Spanned<i64>,
+    turns: Option<Spanned<f64>>,
 }
 
 /// One `[[camera.key]]` of a camera path.
@@ -556,6 +570,31 @@ impl Cx<'_> {
                 .iter()
                 .find_map(|(k, sp)| sp.clone().map(|sp| (*k, sp)))
         };
+        if let Some(i) = &c.interpolation
+            && c.key.is_none()
+        {
+            return Err(self.err(
+                i.span(),
+                "camera.interpolation",
+                "only meaningful with [[camera.key]] entries",
+            ));
+        }
+        if let Some(orbit) = &c.orbit {
+            let eye = c.eye.as_ref().map(|e| ("eye", e.span()));
+            let keys = c.key.as_ref().map(|_| ("key", orbit.span()));
+            if let Some((k, sp)) = keys
+                .or(eye)
+                .or_else(|| first(&explicit))
+                .or_else(|| first(&look_at))
+            {
+                return Err(self.err(
+                    sp,
+                    format!("camera.{k}"),
+                    "cannot be combined with [camera.orbit]: the orbit gives every view",
+                ));
+            }
+            return self.orbit(orbit, image);
+        }
         if let Some(keys) = &c.key {
             let eye = c.eye.as_ref().map(|e| ("eye", e.span()));
             if let Some((k, sp)) = eye.or_else(|| first(&explicit)).or_else(|| first(&look_at)) {
@@ -565,8 +604,19 @@ impl Cx<'_> {
                     "cannot be combined with [[camera.key]]: a camera path gives every view",
                 ));
             }
+            let interpolation = match &c.interpolation {
+                None => Interpolation::Linear,
+                Some(i) => self.choice(
+                    i,
+                    "camera.interpolation",
+                    &[
+                        ("linear", Interpolation::Linear),
+                        ("catmull-rom", Interpolation::CatmullRom),
+                    ],
+                )?,
+            };
             let path = self.camera_path(keys, raw.span())?;
-            let camera = self.look_at_camera(&path.keys[0].view, image, "camera.key[0]", |k| {
+            let camera = self.look_at_camera(&path[0].view, image, "camera.key[0]", |k| {
                 let key = keys[0].get_ref();
                 match k {
                     "look_at" => key.look_at.span(),
@@ -574,6 +624,10 @@ impl Cx<'_> {
                     _ => key.fov_y.span(),
                 }
             })?;
+            let path = CameraPath::Keys {
+                keys: path,
+                interpolation,
+            };
             return Ok((camera, Some(path)));
         }
         if let Some((k, sp)) = first(&look_at) {
@@ -673,12 +727,44 @@ impl Cx<'_> {
         })
     }
 
+    /// `[camera.orbit]`: frame 0's camera and the orbit. Every frame is a valid view when frame
+    /// 0 is (the rotation about `up` keeps the angle between `up` and the view).
+    fn orbit(
+        &self,
+        raw: &Spanned<RawOrbit>,
+        image: &ImageSettings,
+    ) -> Result<(Camera, Option<CameraPath>), SceneError> {
+        let o = raw.get_ref();
+        let frames = self.int(&o.frames, "camera.orbit.frames", 1, i64::from(u32::MAX))?;
+        let turns = match &o.turns {
+            Some(t) => self.finite(t, "camera.orbit.turns")?,
+            None => 1.0,
+        };
+        let start = LookAt {
+            eye: self.dvec3(&o.eye, "camera.orbit.eye")?,
+            look_at: self.dvec3(&o.look_at, "camera.orbit.look_at")?,
+            up: self.dvec3(&o.up, "camera.orbit.up")?,
+            fov_y: self.finite(&o.fov_y, "camera.orbit.fov_y")?,
+        };
+        let camera = self.look_at_camera(&start, image, "camera.orbit", |k| match k {
+            "look_at" => o.look_at.span(),
+            "up" => o.up.span(),
+            _ => o.fov_y.span(),
+        })?;
+        let orbit = Orbit {
+            start,
+            frames,
+            turns,
+        };
+        Ok((camera, Some(CameraPath::Orbit(orbit))))
+    }
+
     /// `[[camera.key]]` entries: frames ≥ 0 and strictly increasing, every key a valid view.
     fn camera_path(
         &self,
         keys: &[Spanned<RawKey>],
         table: Range<usize>,
-    ) -> Result<CameraPath, SceneError> {
+    ) -> Result<Vec<CameraKey>, SceneError> {
         if keys.is_empty() {
             return Err(self.err(table, "camera.key", "a camera path needs at least one key"));
         }
@@ -716,7 +802,7 @@ impl Cx<'_> {
             })?;
             out.push(CameraKey { frame, view });
         }
-        Ok(CameraPath { keys: out })
+        Ok(out)
     }
 
     fn render(&self, raw: Option<RawRender>) -> Result<RenderSettings, SceneError> {
@@ -964,7 +1050,7 @@ material = "m"
         )
         .unwrap();
         let path = s.camera_path.as_ref().unwrap();
-        assert_eq!(path.keys.len(), 2);
+        assert_eq!((path.first_frame(), path.last_frame()), (3, 7));
         assert_eq!(s.default_frame(), Some(3));
         assert_eq!(s.camera.eye, glam::DVec3::X);
         assert_eq!(
@@ -974,7 +1060,7 @@ material = "m"
         let e = s.at_frame(8).unwrap_err().to_string();
         assert_eq!(
             e,
-            "t.toml: frame 8 is outside the camera path's keys (3..=7)"
+            "t.toml: frame 8 is outside the camera path's frames (3..=7)"
         );
     }
 

@@ -259,16 +259,13 @@ pub struct Scene {
 }
 
 impl Scene {
-    /// The scene with every position moved by `delta` (eye, camera-path keys, lights, sphere
+    /// The scene with every position moved by `delta` (eye, camera path, lights, sphere
     /// centres, plane points; mesh files are not rewritten), in f64.
     pub fn translated(&self, delta: DVec3) -> Scene {
         let mut s = self.clone();
         s.name = format!("{} moved by {delta}", self.name);
         s.camera.eye += delta;
-        for key in s.camera_path.iter_mut().flat_map(|p| p.keys.iter_mut()) {
-            key.view.eye += delta;
-            key.view.look_at += delta;
-        }
+        s.camera_path = s.camera_path.as_ref().map(|p| p.translated(delta));
         for l in &mut s.lights {
             l.position += delta;
         }
