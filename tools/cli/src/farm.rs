@@ -22,7 +22,8 @@ use crate::{SceneArgs, scene_from};
 pub enum FarmCommand {
     /// Write Slurm job scripts (a job array over tiles or frame chunks, and a merge job for
     /// tiles); `--print` shows them, `--submit` submits them with sbatch. Options after `--` go to
-    /// every sbatch call (e.g. `-- --partition=render --time=30`).
+    /// every sbatch call (e.g. `-- --partition=render --time=30`); `--merge-sbatch` ones to the
+    /// merge job only.
     Slurm(SlurmArgs),
 }
 
@@ -49,9 +50,13 @@ pub struct SlurmArgs {
     /// The wavefront binary the jobs run (default: this one).
     #[arg(long)]
     wavefront: Option<PathBuf>,
-    /// Pass --skip-existing to the render tasks (a resubmitted frame range resumes).
+    /// Pass --skip-existing to the render tasks (a resubmitted frame range or tile set resumes).
     #[arg(long)]
     skip_existing: bool,
+    /// An sbatch option for the merge job only (repeatable), after the options after `--`, so
+    /// it overrides them there (e.g. `--merge-sbatch=--cpus-per-task=1`).
+    #[arg(long, value_name = "OPTION", allow_hyphen_values = true)]
+    merge_sbatch: Vec<String>,
     /// Print the scripts and the sbatch commands; write nothing.
     #[arg(long, conflicts_with = "submit")]
     print: bool,
@@ -129,9 +134,19 @@ fn quote_path(p: &Path) -> String {
 
 impl SlurmPlan {
     /// Tile `k`'s file for an image written to `output` (a template when frames are rendered):
-    /// `<output stem>.tiles/tile_<k>.png` beside it.
+    /// `<output stem>.tiles/tile_<k>.<ext>` beside it: EXR tiles for an `.exr` image (its
+    /// linear radiance), PNG tiles otherwise.
     pub fn tile_path(output: &Path, k: &str) -> PathBuf {
-        Self::tile_dir(output).join(format!("tile_{k}.png"))
+        Self::tile_dir(output).join(format!("tile_{k}.{}", Self::tile_extension(output)))
+    }
+
+    /// The tiles' file extension for `output`: `exr` for an `.exr` image, else `png`.
+    pub fn tile_extension(output: &Path) -> &'static str {
+        if wavefront::output::is_exr(output) {
+            "exr"
+        } else {
+            "png"
+        }
     }
 
     /// The directory holding an image's tiles.
@@ -213,10 +228,11 @@ impl SlurmPlan {
             Work::Tiles { n, frames: None } => {
                 // `--tile N` reads the tile index from SLURM_ARRAY_TASK_ID itself.
                 let tile = quote_path(&Self::tile_dir(&self.output).join("tile_"));
+                let ext = Self::tile_extension(&self.output);
                 let _ = writeln!(
                     render,
-                    "exec {exe} render {scene} --tile {n} \"${{threads[@]}}\" \
-                     -o {tile}\"$task\".png"
+                    "exec {exe} render {scene} --tile {n}{skip} \"${{threads[@]}}\" \
+                     -o {tile}\"$task\".{ext}"
                 );
                 merge = Some(self.merge_script(*n, std::slice::from_ref(&self.output)));
             }
@@ -230,10 +246,11 @@ impl SlurmPlan {
                     "k=$((task % {n}))\nframe=$(({} + task / {n}))",
                     range.first
                 );
+                let ext = Self::tile_extension(&frame_path(&self.output, range.first));
                 let _ = writeln!(
                     render,
-                    "exec {exe} render {scene} --frames \"$frame\" --tile \"$k/{n}\" \
-                     \"${{threads[@]}}\" -o {tile}\"$k\".png"
+                    "exec {exe} render {scene} --frames \"$frame\" --tile \"$k/{n}\"{skip} \
+                     \"${{threads[@]}}\" -o {tile}\"$k\".{ext}"
                 );
                 let outputs: Vec<PathBuf> = range
                     .frames()
@@ -289,12 +306,20 @@ impl SlurmPlan {
         s
     }
 
-    /// The sbatch command lines that submit `render` and `merge` from the job directory.
-    pub fn submit_commands(&self, sbatch: &[String], has_merge: bool) -> String {
-        let extra: String = sbatch
-            .iter()
-            .map(|a| format!(" {}", shell_quote(a)))
-            .collect();
+    /// The sbatch command lines that submit `render` and `merge` from the job directory:
+    /// `sbatch` options go to both, `merge_sbatch` ones to the merge job only, after them.
+    pub fn submit_commands(
+        &self,
+        sbatch: &[String],
+        merge_sbatch: &[String],
+        has_merge: bool,
+    ) -> String {
+        let quoted = |opts: &[String]| -> String {
+            opts.iter()
+                .map(|a| format!(" {}", shell_quote(a)))
+                .collect()
+        };
+        let extra = quoted(sbatch);
         let render = quote_path(&self.job_dir.join("render.sbatch"));
         let mut s = format!("array=$(sbatch --parsable{extra} {render})\n");
         if has_merge {
@@ -302,7 +327,8 @@ impl SlurmPlan {
             let _ = writeln!(
                 s,
                 "sbatch --parsable --dependency=afterok:\"${{array%%;*}}\" \
-                 --kill-on-invalid-dep=yes{extra} {merge}"
+                 --kill-on-invalid-dep=yes{extra}{} {merge}",
+                quoted(merge_sbatch)
             );
         }
         s
@@ -426,7 +452,7 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
         }
         print!(
             "# ==> submit <==\n{}",
-            plan.submit_commands(&args.sbatch, scripts.merge.is_some())
+            plan.submit_commands(&args.sbatch, &args.merge_sbatch, scripts.merge.is_some())
         );
         return Ok(());
     }
@@ -454,7 +480,7 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
         );
         print!(
             "{}",
-            plan.submit_commands(&args.sbatch, scripts.merge.is_some())
+            plan.submit_commands(&args.sbatch, &args.merge_sbatch, scripts.merge.is_some())
         );
         return Ok(());
     }
@@ -465,7 +491,8 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
             format!("--dependency=afterok:{array}"),
             "--kill-on-invalid-dep=yes".to_owned(),
         ];
-        match sbatch(&args.sbatch, &dependency, &merge_file) {
+        let options = [args.sbatch.as_slice(), &args.merge_sbatch].concat();
+        match sbatch(&options, &dependency, &merge_file) {
             Ok(merge) => println!(
                 "merge: {merge} (after every render task succeeds; cancelled if one fails)"
             ),
@@ -572,7 +599,7 @@ mod tests {
             ),
             "{merge}"
         );
-        let submit = p.submit_commands(&["--partition=x y".into()], true);
+        let submit = p.submit_commands(&["--partition=x y".into()], &[], true);
         assert!(
             submit.contains(
                 "--dependency=afterok:\"${array%%;*}\" --kill-on-invalid-dep=yes \
@@ -649,7 +676,7 @@ mod tests {
             "{}",
             s.render
         );
-        assert!(!p.submit_commands(&[], false).contains("merge"));
+        assert!(!p.submit_commands(&[], &[], false).contains("merge"));
     }
 
     #[test]
@@ -658,5 +685,63 @@ mod tests {
         assert_eq!(d("/o/frame_####.png"), PathBuf::from("/o/frame.slurm"));
         assert_eq!(d("/o/a.png"), PathBuf::from("/o/a.slurm"));
         assert_eq!(d("/o/####.png"), PathBuf::from("/o/wavefront.slurm"));
+    }
+
+    #[test]
+    fn skip_existing_reaches_the_tile_tasks() {
+        for frames in [None, Some(FrameRange { first: 5, last: 6 })] {
+            let mut p = plan(Work::Tiles { n: 4, frames });
+            p.skip_existing = true;
+            let s = p.scripts();
+            let line = s.render.lines().find(|l| l.starts_with("exec ")).unwrap();
+            assert!(line.contains(" --skip-existing "), "{line}");
+        }
+    }
+
+    #[test]
+    fn an_exr_image_is_rendered_as_exr_tiles_and_merged_from_them() {
+        let mut p = plan(Work::Tiles { n: 2, frames: None });
+        p.output = "/out/a.exr".into();
+        let s = p.scripts();
+        assert!(
+            s.render.contains("-o /out/a.tiles/tile_\"$task\".exr"),
+            "{}",
+            s.render
+        );
+        let merge = s.merge.unwrap();
+        assert!(
+            merge.contains("merge /out/a.tiles/tile_0.exr /out/a.tiles/tile_1.exr -o /out/a.exr"),
+            "{merge}"
+        );
+        let mut p = plan(Work::Tiles {
+            n: 2,
+            frames: Some(FrameRange { first: 1, last: 2 }),
+        });
+        p.output = "/out/f_##.exr".into();
+        let s = p.scripts();
+        assert!(s.render.contains("\"$k\".exr"), "{}", s.render);
+        assert!(
+            s.merge
+                .unwrap()
+                .contains("/out/f_02.tiles/tile_1.exr -o /out/f_02.exr"),
+            "each frame merges its own EXR tiles"
+        );
+    }
+
+    #[test]
+    fn merge_only_options_go_to_the_merge_job_after_the_common_ones() {
+        let p = plan(Work::Tiles { n: 2, frames: None });
+        let submit = p.submit_commands(
+            &["--time=60".into(), "--cpus-per-task=8".into()],
+            &["--cpus-per-task=1".into()],
+            true,
+        );
+        let (render, merge) = submit.split_once('\n').unwrap();
+        assert!(render.contains("--time=60 --cpus-per-task=8 "), "{render}");
+        assert!(!render.contains("--cpus-per-task=1"), "{render}");
+        assert!(
+            merge.contains("--time=60 --cpus-per-task=8 --cpus-per-task=1 "),
+            "{merge}"
+        );
     }
 }

@@ -353,6 +353,9 @@ fn run_render(args: RenderArgs) -> Result<()> {
             ),
             None => None,
         };
+        // Each frame's summary counts from the end of the one before (the first from the
+        // command's start, so a single image reports the whole command).
+        let mut since = start;
         for job in todo {
             // Rendering moves the world to this frame's eye (World::reframed) when it moved.
             let bar = feedback.progress();
@@ -414,9 +417,10 @@ fn run_render(args: RenderArgs) -> Result<()> {
                 width: image.width,
                 height: image.height,
                 samples: image.samples,
-                seconds: start.elapsed().as_secs_f64(),
+                seconds: since.elapsed().as_secs_f64(),
                 rays,
             });
+            since = Instant::now();
             if args.stats {
                 println!("{stats}");
                 println!(

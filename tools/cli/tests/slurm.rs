@@ -88,6 +88,20 @@ impl Cluster {
             .collect()
     }
 
+    /// The job names of job `id`'s records.
+    fn job_names(&self, id: &str) -> Vec<String> {
+        let out = self
+            .command("scontrol")
+            .args(["show", "job", id])
+            .output()
+            .expect("cannot run scontrol");
+        String::from_utf8_lossy(&out.stdout)
+            .split_whitespace()
+            .filter_map(|w| w.strip_prefix("JobName="))
+            .map(str::to_owned)
+            .collect()
+    }
+
     /// Waits until no record of any job in `ids` is pending, configuring or running.
     fn wait(&self, ids: &[&str], deadline: Instant) {
         let busy = |s: &String| {
@@ -229,6 +243,42 @@ fn tiles_and_frames_on_a_slurm_cluster_match_single_renders() {
         "--submit",
     ]);
     let broken = farm(&[spheres, "--tiles", "4", "-o", "broken.png", "--submit"]);
+    // An EXR image: EXR tiles merged into the EXR; tile tasks skip tiles that exist (tile 0 is
+    // planted, so its task must leave it alone); merge-only sbatch options.
+    std::fs::create_dir_all(work.join("e.tiles")).unwrap();
+    check(
+        wavefront(&work)
+            .args([
+                "render",
+                spheres,
+                "--samples",
+                "2",
+                "--tile",
+                "0/2",
+                "-o",
+                "e.tiles/tile_0.exr",
+            ])
+            .output()
+            .unwrap(),
+        "render --tile 0/2",
+    );
+    let planted = std::fs::metadata(work.join("e.tiles/tile_0.exr"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    let exr = farm(&[
+        spheres,
+        "--samples",
+        "2",
+        "--tiles",
+        "2",
+        "-o",
+        "e.exr",
+        "--skip-existing",
+        "--merge-sbatch=--job-name=wavefront-merge-exr",
+        "--submit",
+    ]);
+    let (exr_array, exr_merge) = (job_id(&exr, "render"), job_id(&exr, "merge"));
     let (tiles_array, tiles_merge) = (job_id(&tiles, "render"), job_id(&tiles, "merge"));
     let frames_array = job_id(&frames, "render");
     let (broken_array, broken_merge) = (job_id(&broken, "render"), job_id(&broken, "merge"));
@@ -241,6 +291,13 @@ fn tiles_and_frames_on_a_slurm_cluster_match_single_renders() {
             .output()
             .unwrap(),
         "render",
+    );
+    check(
+        wavefront(&work)
+            .args(["render", spheres, "--samples", "2", "-o", "single.exr"])
+            .output()
+            .unwrap(),
+        "render -o single.exr",
     );
     check(
         wavefront(&work)
@@ -265,6 +322,8 @@ fn tiles_and_frames_on_a_slurm_cluster_match_single_renders() {
             &frames_array,
             &broken_array,
             &broken_merge,
+            &exr_array,
+            &exr_merge,
         ],
         deadline,
     );
@@ -288,6 +347,33 @@ fn tiles_and_frames_on_a_slurm_cluster_match_single_renders() {
         let local = std::fs::read(work.join(format!("single_{f}.png"))).unwrap();
         assert!(farmed == local, "frame {f} differs from the local render");
     }
+
+    // EXR: both tasks and the merge completed; the planted tile was skipped, not rewritten; the
+    // merged EXR holds the single render's linear pixels; the merge job had its own name.
+    assert_eq!(cluster.job_states(&exr_array), ["COMPLETED"; 2]);
+    assert_eq!(cluster.job_states(&exr_merge), ["COMPLETED"]);
+    let now = std::fs::metadata(work.join("e.tiles/tile_0.exr"))
+        .unwrap()
+        .modified()
+        .unwrap();
+    assert_eq!(now, planted, "--skip-existing must reach the tile tasks");
+    assert!(
+        work.join("e.tiles/tile_1.exr").exists(),
+        "EXR tiles for an EXR image"
+    );
+    let merged = wavefront::output::read_exr(&work.join("e.exr")).expect("no merged EXR");
+    let single = wavefront::output::read_exr(&work.join("single.exr")).unwrap();
+    assert_eq!(merged.size, single.size);
+    assert!(
+        merged.pixels == single.pixels,
+        "the merged EXR differs from the single render"
+    );
+    let name = cluster.job_names(&exr_merge);
+    assert_eq!(
+        name,
+        ["wavefront-merge-exr"],
+        "--merge-sbatch reaches the merge job"
+    );
 
     // A failed tile: that task failed, the merge ended without running, nothing was merged.
     let states = cluster.job_states(&broken_array);
