@@ -62,17 +62,31 @@ pub use schedule::{Pipeline, RenderOptions, Stage, render, render_into, render_o
 pub use stats::Stats;
 pub use world::World;
 
-/// Loads a scene by built-in name or file path.
-pub fn load_scene(name_or_path: &str) -> Result<Scene, error::SceneError> {
+/// Loads a scene by built-in name or file path: a scene file, or a bare mesh (`.obj`), which
+/// is framed automatically ([`scene::framing::bare_mesh`], SPEC §16).
+pub fn load_scene(name_or_path: &str) -> Result<Scene, error::LoadError> {
     if let Some(s) = scene::builtin::builtin(name_or_path) {
         return Ok(s);
     }
     let path = std::path::Path::new(name_or_path);
-    if path.exists() {
-        scene::file::load(path)
-    } else {
-        Err(error::SceneError::UnknownScene {
+    if !path.exists() {
+        return Err(error::SceneError::UnknownScene {
             name: name_or_path.to_owned(),
-        })
+        }
+        .into());
     }
+    if scene::framing::is_mesh_path(path) {
+        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+        if !ext.eq_ignore_ascii_case("obj") {
+            return Err(error::SceneError::Invalid {
+                file: path.to_path_buf(),
+                line: 1,
+                key: "mesh".into(),
+                message: format!("{ext} meshes are not supported yet (OBJ only)"),
+            }
+            .into());
+        }
+        return scene::framing::bare_mesh(path);
+    }
+    Ok(scene::file::load(path)?)
 }

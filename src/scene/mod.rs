@@ -9,6 +9,7 @@ pub mod builtin;
 pub mod camera;
 pub mod camera_path;
 pub mod file;
+pub mod framing;
 pub mod lookat;
 pub mod mtl;
 pub mod overrides;
