@@ -65,7 +65,52 @@ pub use world::World;
 /// Loads a scene by built-in name or file path: a scene file, or a bare mesh (`.obj`), which
 /// is framed automatically ([`scene::framing::bare_mesh`], SPEC §16).
 pub fn load_scene(name_or_path: &str) -> Result<Scene, error::LoadError> {
-    if let Some(s) = scene::builtin::builtin(name_or_path) {
+    load_scene_with(name_or_path, &[])
+}
+
+/// [`load_scene`] with command-line settings (`--set`, `--size`, SPEC §16) applied: to a scene
+/// file's own keys ([`scene::set::load_with`]); to a built-in or a bare mesh only
+/// `image.width` and `image.height` (a bare mesh is framed for the new size).
+pub fn load_scene_with(
+    name_or_path: &str,
+    settings: &[scene::set::Setting],
+) -> Result<Scene, error::LoadError> {
+    let path = std::path::Path::new(name_or_path);
+    let file = scene::builtin::builtin(name_or_path).is_none()
+        && path.exists()
+        && !scene::framing::is_mesh_path(path);
+    if file {
+        return Ok(scene::set::load_with(path, settings)?);
+    }
+    let mut size = (512, 512);
+    for s in settings {
+        let (side, n) = match (s.key.as_str(), s.value.as_integer()) {
+            ("image.width", Some(n)) => (&mut size.0, n),
+            ("image.height", Some(n)) => (&mut size.1, n),
+            _ => {
+                return Err(error::SceneError::Setting {
+                    key: s.arg.clone(),
+                    message: format!(
+                        "{name_or_path} is not a scene file: only --size (image.width, \
+                         image.height) applies to it"
+                    ),
+                }
+                .into());
+            }
+        };
+        *side = u32::try_from(n).unwrap_or(0);
+        if !(1..=scene::file::MAX_IMAGE_SIDE).contains(side) {
+            return Err(error::SceneError::Setting {
+                key: s.arg.clone(),
+                message: format!("{n} is out of range 1..={}", scene::file::MAX_IMAGE_SIDE),
+            }
+            .into());
+        }
+    }
+    if let Some(mut s) = scene::builtin::builtin(name_or_path) {
+        if !settings.is_empty() {
+            (s.image.width, s.image.height) = size;
+        }
         return Ok(s);
     }
     let path = std::path::Path::new(name_or_path);
@@ -86,7 +131,7 @@ pub fn load_scene(name_or_path: &str) -> Result<Scene, error::LoadError> {
             }
             .into());
         }
-        return scene::framing::bare_mesh(path);
+        return scene::framing::bare_mesh(path, size);
     }
     Ok(scene::file::load(path)?)
 }

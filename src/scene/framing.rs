@@ -59,9 +59,10 @@ pub fn frame_box(
 }
 
 /// The scene of `wavefront render MESH.obj`: the mesh framed by [`frame_box`] from
-/// [`DEFAULT_FROM`] at [`DEFAULT_FOV_Y`], 512 × 512, one white point light at the eye (no
-/// falloff), a grey material (`kd = 0.8`, `ka = 0.1`), shadows on, no reflections.
-pub fn bare_mesh(path: &Path) -> Result<Scene, LoadError> {
+/// [`DEFAULT_FROM`] at [`DEFAULT_FOV_Y`] on a `width × height` image (512 × 512 unless
+/// `--size` says otherwise), one white point light at the eye (no falloff), a grey material
+/// (`kd = 0.8`, `ka = 0.1`), shadows on, no reflections.
+pub fn bare_mesh(path: &Path, (width, height): (u32, u32)) -> Result<Scene, LoadError> {
     let mesh = ObjMesh::read(path)?;
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     for &p in &mesh.positions {
@@ -69,8 +70,8 @@ pub fn bare_mesh(path: &Path) -> Result<Scene, LoadError> {
         hi = hi.max(DVec3::from(p));
     }
     let image = ImageSettings {
-        width: 512,
-        height: 512,
+        width,
+        height,
         samples: 1,
         gamma: 2.2,
         seed: 0,

@@ -13,6 +13,7 @@ pub mod framing;
 pub mod lookat;
 pub mod mtl;
 pub mod overrides;
+pub mod set;
 
 use std::path::PathBuf;
 

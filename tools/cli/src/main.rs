@@ -18,9 +18,11 @@ use wavefront::frame::RenderFrame;
 use wavefront::mesh::{ObjMesh, TriangleMesh};
 use wavefront::output::{ImageFormat, ImageMeta, ImageStream, PartialFile};
 use wavefront::scene::overrides::Overrides;
+use wavefront::scene::set::Setting;
 use wavefront::schedule::{MAX_WAVE_SAMPLES, Progress as ProgressObserver};
 use wavefront::{
-    Pipeline, RenderOptions, Scene, Stage, Stats, World, load_scene, render, render_into,
+    Pipeline, RenderOptions, Scene, Stage, Stats, World, load_scene, load_scene_with, render,
+    render_into,
 };
 
 #[derive(Parser)]
@@ -151,6 +153,13 @@ struct SceneArgs {
     /// Render the hit/miss mask instead of shading.
     #[arg(long)]
     mask: bool,
+    /// Image size, WIDTHxHEIGHT (sets image.width and image.height).
+    #[arg(long, value_name = "WxH")]
+    size: Option<String>,
+    /// Set a scene-file key by its dotted path to a TOML value, e.g. `render.max_depth=3`,
+    /// `light.0.position=[1,2,3]` (repeatable; checked as the file's own keys are).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    set: Vec<String>,
 }
 
 #[derive(Args)]
@@ -243,7 +252,14 @@ fn main() -> ExitCode {
 }
 
 fn scene_from(args: &SceneArgs) -> Result<Scene> {
-    let mut scene = load_scene(&args.scene)?;
+    let mut settings = vec![];
+    if let Some(size) = &args.size {
+        settings.extend(Setting::size(size)?);
+    }
+    for s in &args.set {
+        settings.push(s.parse::<Setting>()?);
+    }
+    let mut scene = load_scene_with(&args.scene, &settings)?;
     let shadows = match (args.shadows, args.no_shadows) {
         (_, true) => Some(false),
         (true, false) => Some(true),
