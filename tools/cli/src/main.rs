@@ -3,6 +3,7 @@
 mod farm;
 mod feedback;
 mod frames;
+mod info;
 mod merge;
 mod plan;
 
@@ -42,6 +43,9 @@ enum Command {
     Render(RenderArgs),
     /// Print the stage pipeline a scene runs, depth by depth, without rendering.
     Plan(SceneArgs),
+    /// Describe a scene or a mesh: triangles, vertices, bounds, materials and their faces,
+    /// lights, the camera and the pipeline.
+    Info(InfoArgs),
     /// Build or check kD trees in the text format of SPEC §6.
     #[command(subcommand)]
     Kdtree(KdtreeCommand),
@@ -55,6 +59,16 @@ enum Command {
     /// Write (and submit) render-farm jobs.
     #[command(subcommand)]
     Farm(farm::FarmCommand),
+}
+
+/// Arguments of `info`.
+#[derive(Args)]
+struct InfoArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    /// One JSON object instead of text.
+    #[arg(long)]
+    json: bool,
 }
 
 /// Where the tree cache lives (render, bench, kdtree build).
@@ -235,6 +249,7 @@ fn main() -> ExitCode {
     let result = match command {
         Some(Command::Render(args)) => run_render(args),
         Some(Command::Plan(args)) => run_plan(&args),
+        Some(Command::Info(args)) => run_info(&args),
         Some(Command::Kdtree(cmd)) => run_kdtree(cmd),
         Some(Command::Bench(args)) => run_bench(&args),
         Some(Command::Report(args)) => run_report(&args),
@@ -275,6 +290,20 @@ fn scene_from(args: &SceneArgs) -> Result<Scene> {
     }
     .apply(&mut scene)?;
     Ok(scene)
+}
+
+fn run_info(args: &InfoArgs) -> Result<()> {
+    use std::io::Write as _;
+    let info = info::Info::of(scene_from(&args.scene)?)?;
+    let text = if args.json {
+        format!("{}\n", info.json())
+    } else {
+        info.text()
+    };
+    std::io::stdout()
+        .lock()
+        .write_all(text.as_bytes())
+        .context("cannot write to stdout")
 }
 
 fn run_plan(args: &SceneArgs) -> Result<()> {

@@ -61,3 +61,41 @@ fn other_mesh_formats_are_named_not_read_as_scene_files() {
     assert!(!err.contains("TOML") && !err.contains("expected"), "{err}");
     assert!(!dir.path().join("b.png").exists());
 }
+
+#[test]
+fn info_describes_a_mesh_and_a_scene() {
+    let dir = Scratch::new("info");
+    std::fs::write(dir.path().join("cube.obj"), CUBE).unwrap();
+    let o = run(&dir, &["info", "cube.obj", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["triangles"], 12);
+    let mesh = &v["meshes"][0];
+    assert_eq!(
+        (&mesh["vertices"], &mesh["degenerate"]),
+        (&8.into(), &0.into())
+    );
+    assert_eq!(
+        mesh["bounds"],
+        serde_json::json!([[1.0, 2.0, 3.0], [3.0, 4.0, 5.0]])
+    );
+    assert_eq!(v["materials"][0]["faces"], 12);
+    assert_eq!(v["lights"].as_array().unwrap().len(), 1);
+    assert!(
+        v["pipeline"]
+            .as_str()
+            .unwrap()
+            .contains("depth 0: generate")
+    );
+    // The room: its 12 × 24 UV-sphere ball has 2 × 24 degenerate triangles at the poles, and
+    // each wall material of room.mtl covers one quad.
+    let room = wavefront_kit::testkit::project_root().join("scenes/room.toml");
+    let o = run(&dir, &["info", room.to_str().unwrap()]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(text.contains("576 triangles (48 degenerate)"), "{text}");
+    assert!(
+        text.contains("room.obj:red: ") && text.contains("(2 faces)"),
+        "{text}"
+    );
+}
