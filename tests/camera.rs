@@ -293,3 +293,67 @@ fn bad_orbits_and_interpolations_name_line_and_key() {
         assert!(e.starts_with("s.toml:"), "names the file and line: {e}");
     }
 }
+
+#[test]
+fn frame_auto_fits_the_bounding_sphere_of_the_geometry() {
+    // Scene A's spheres span x in [-5, 5], y in [-2, 2], z in [-9, -5] (the plane is unbounded
+    // and left out): centre (0, 0, -7), bounding-sphere radius |(5, 2, 2)| = √33.
+    for size in [(512, 512), (300, 200), (200, 300)] {
+        let text = spheres_text_with_camera("[camera]\nframe = \"auto\"\nfrom = [0.0, 1.0, 2.0]")
+            .replace(
+                "width = 512\nheight = 512",
+                &format!("width = {}\nheight = {}", size.0, size.1),
+            );
+        let s = parse(&text, Path::new("s.toml")).unwrap();
+        let c = &s.camera;
+        let centre = glam::DVec3::new(0.0, 0.0, -7.0);
+        let to_eye = c.eye - centre;
+        let d = to_eye.length();
+        let dir = glam::DVec3::new(0.0, 1.0, 2.0) / 5f64.sqrt();
+        assert!(
+            (to_eye / d - dir).length() < 1e-12,
+            "{size:?}: looks from `from`"
+        );
+        // The sphere touches the smaller side: R / d = sin(half-angle) = t / √(1 + t²).
+        let t = f64::from(c.t.min(c.r));
+        let sine = t / (1.0 + t * t).sqrt();
+        assert!((33f64.sqrt() / d - sine).abs() < 1e-6, "{size:?}");
+        assert_eq!(c.d, 1.0);
+    }
+    // The defaults: from (1, 0.6, 1), fov_y 40.
+    let s = parse(
+        &spheres_text_with_camera("[camera]\nframe = \"auto\""),
+        Path::new("s.toml"),
+    )
+    .unwrap();
+    let dir = (s.camera.eye - glam::DVec3::new(0.0, 0.0, -7.0)).normalize();
+    assert!((dir - glam::DVec3::new(1.0, 0.6, 1.0).normalize()).length() < 1e-12);
+    let cases = [
+        (
+            "[camera]\nframe = \"manual\"",
+            "camera.frame: unknown value \"manual\"",
+        ),
+        (
+            "[camera]\nframe = \"auto\"\neye = [0.0, 0.0, 0.0]",
+            "camera.eye: cannot be combined",
+        ),
+        (
+            "[camera]\nframe = \"auto\"\nfrom = [0.0, 0.0, 0.0]",
+            "camera.from",
+        ),
+        (
+            "[camera]\nfrom = [0.0, 1.0, 0.0]\neye = [0.0, 0.0, 0.0]\nlook_at = [0.0, 0.0, -7.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 90.0",
+            "camera.from: only meaningful with frame = \"auto\"",
+        ),
+        ("[camera]\nframe = \"auto\"\nfov_y = 180.0", "camera.fov_y"),
+    ];
+    for (camera, expect) in cases {
+        let e = parse(&spheres_text_with_camera(camera), Path::new("s.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(expect) && e.starts_with("s.toml:"),
+            "{camera}\n-> {e}"
+        );
+    }
+}

@@ -93,6 +93,8 @@ struct RawCamera {
     key: Option<Vec<Spanned<RawKey>>>,
     interpolation: Option<Spanned<String>>,
     orbit: Option<Spanned<RawOrbit>>,
+    frame: Option<Spanned<String>>,
+    from: Option<V3>,
 }
 
 /// `[camera.orbit]`: the eye circles `look_at` about `up` (SPEC §10).
@@ -352,7 +354,15 @@ impl Cx<'_> {
 
     fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
         let image = self.image(raw.image)?;
-        let (camera, camera_path) = self.camera(&raw.camera, &image)?;
+        let auto = self.auto_frame(&raw.camera)?;
+        // A framed camera is made once the geometry is known, below.
+        let (camera, camera_path) = match auto {
+            Some(_) => (None, None),
+            None => {
+                let (camera, path) = self.camera(&raw.camera, &image)?;
+                (Some(camera), path)
+            }
+        };
         let render = self.render(raw.render)?;
 
         let mut lights = Vec::with_capacity(raw.light.len());
@@ -500,6 +510,13 @@ impl Cx<'_> {
         }
 
         materials.extend(library);
+        let camera = match (auto, camera) {
+            (_, Some(camera)) => camera,
+            (view, None) => {
+                let view = view.expect("a camera is framed or given");
+                self.framed(&raw.camera, view, &image, &spheres, &meshes)?
+            }
+        };
         Ok(Scene {
             name: self.path.display().to_string(),
             image,
@@ -725,6 +742,97 @@ impl Cx<'_> {
                 e.to_string(),
             )
         })
+    }
+
+    /// `[camera] frame = "auto"` (SPEC §16): the view direction and field of view it asks for
+    /// (`from`, default (1, 0.6, 1); `fov_y`, default 40), or `None` for every other camera.
+    /// `from` without `frame`, or `frame` with any key but `from` and `fov_y`, is an error.
+    fn auto_frame(&self, raw: &Spanned<RawCamera>) -> Result<Option<(DVec3, f64)>, SceneError> {
+        let c = raw.get_ref();
+        let Some(frame) = &c.frame else {
+            if let Some(from) = &c.from {
+                return Err(self.err(
+                    from.span(),
+                    "camera.from",
+                    "only meaningful with frame = \"auto\"",
+                ));
+            }
+            return Ok(None);
+        };
+        if frame.get_ref() != "auto" {
+            return Err(self.err(
+                frame.span(),
+                "camera.frame",
+                format!("unknown value {:?}; expected \"auto\"", frame.get_ref()),
+            ));
+        }
+        let others = [
+            ("eye", c.eye.as_ref().map(Spanned::span)),
+            ("u", c.u.as_ref().map(Spanned::span)),
+            ("v", c.v.as_ref().map(Spanned::span)),
+            ("w", c.w.as_ref().map(Spanned::span)),
+            ("window", c.window.as_ref().map(Spanned::span)),
+            ("distance", c.distance.as_ref().map(Spanned::span)),
+            ("look_at", c.look_at.as_ref().map(Spanned::span)),
+            ("up", c.up.as_ref().map(Spanned::span)),
+            ("interpolation", c.interpolation.as_ref().map(Spanned::span)),
+            ("orbit", c.orbit.as_ref().map(Spanned::span)),
+            ("key", c.key.as_ref().map(|_| frame.span())),
+        ];
+        if let Some((k, sp)) = others
+            .iter()
+            .find_map(|(k, sp)| sp.clone().map(|sp| (*k, sp)))
+        {
+            return Err(self.err(
+                sp,
+                format!("camera.{k}"),
+                "cannot be combined with frame = \"auto\" (only from and fov_y)",
+            ));
+        }
+        let from = match &c.from {
+            Some(f) => self.direction(f, "camera.from")?.as_dvec3(),
+            None => super::framing::DEFAULT_FROM,
+        };
+        let fov_y = match &c.fov_y {
+            Some(f) => self.finite(f, "camera.fov_y")?,
+            None => super::framing::DEFAULT_FOV_Y,
+        };
+        Ok(Some((from, fov_y)))
+    }
+
+    /// The camera of `frame = "auto"`: [`super::framing::frame_box`] of the bounds of every
+    /// sphere and every mesh's vertices (planes are unbounded and left out).
+    fn framed(
+        &self,
+        raw: &Spanned<RawCamera>,
+        (from, fov_y): (DVec3, f64),
+        image: &ImageSettings,
+        spheres: &[Sphere],
+        meshes: &[MeshRef],
+    ) -> Result<Camera, SceneError> {
+        let span = raw
+            .get_ref()
+            .frame
+            .as_ref()
+            .map_or(raw.span(), Spanned::span);
+        let fail = |message: String| self.err(span.clone(), "camera.frame", message);
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        for s in spheres {
+            lo = lo.min(s.center - f64::from(s.radius));
+            hi = hi.max(s.center + f64::from(s.radius));
+        }
+        for m in meshes {
+            let mesh = crate::mesh::ObjMesh::read(&m.path)
+                .map_err(|e| fail(format!("cannot read a mesh to frame: {e}")))?;
+            for &p in &mesh.positions {
+                lo = lo.min(p.into());
+                hi = hi.max(p.into());
+            }
+        }
+        let view = super::framing::frame_box(lo, hi, from, fov_y, (image.width, image.height))
+            .ok_or_else(|| fail("nothing to frame: no sphere or mesh vertex".into()))?;
+        view.camera(image.width, image.height)
+            .map_err(|e| self.err(span.clone(), format!("camera.{}", e.key()), e.to_string()))
     }
 
     /// `[camera.orbit]`: frame 0's camera and the orbit. Every frame is a valid view when frame
