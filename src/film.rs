@@ -10,6 +10,7 @@ use std::path::Path;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::arith;
 use crate::error::OutputError;
 use crate::output::{ImageMeta, write_rgb8};
 use crate::queue::{MIN_CHUNK, PixelIndex, SampleSlot};
@@ -170,11 +171,72 @@ pub fn resolve_wave(buffer: &SampleBuffer, wave: &Wave, out: &mut Vec<Vec3>) {
         .collect_into_vec(out);
 }
 
-/// Encodes one linear channel value to 8 bits; NaN becomes 0.
+/// Encodes one linear channel value to 8 bits through the [`GammaTable`] of `inv_gamma` (kept
+/// per thread for the last gamma used): `round(255 · c^(1/γ))` with the project's own power
+/// (SPEC §2: the same bits on every CPU); NaN becomes 0.
 #[inline]
 pub fn encode(c: f32, inv_gamma: f32) -> u8 {
-    let c = if c.is_nan() { 0.0 } else { c.clamp(0.0, 1.0) };
-    (255.0 * c.powf(inv_gamma)).round() as u8
+    thread_local! {
+        static TABLE: std::cell::RefCell<GammaTable> = std::cell::RefCell::new(GammaTable::new(1.0 / 2.2));
+    }
+    TABLE.with_borrow_mut(|t| {
+        if t.inv_gamma.to_bits() != inv_gamma.to_bits() {
+            *t = GammaTable::new(inv_gamma);
+        }
+        t.encode(c)
+    })
+}
+
+/// The 8-bit output levels of one gamma as 255 thresholds (SPEC §2 allows a table whose entries
+/// a deterministic routine defines). Level `k` starts at the smallest f32 `c` in `[0, 1]` with
+/// `round(255 · c^(1/γ)) ≥ k`, [`arith::pow`] being the power ([`gamma_level`]), found by
+/// bisection over the bit patterns; a value's level is the number of thresholds at or below it.
+/// That is [`gamma_level`] itself wherever it does not decrease (everywhere, as far as tested)
+/// for the cost of a binary search instead of an `exp2` and a `log2` per channel.
+#[derive(Clone, Debug)]
+pub struct GammaTable {
+    /// `1/γ`, the exponent the table encodes.
+    pub inv_gamma: f32,
+    /// `start[k − 1]`: the first value of level `k`, increasing.
+    start: [f32; 255],
+}
+
+/// `round(255 · c^inv_gamma)` for `c` in `[0, 1]`: the definition [`GammaTable`] tabulates.
+#[inline]
+pub fn gamma_level(c: f32, inv_gamma: f32) -> u8 {
+    (255.0 * arith::pow(c, inv_gamma)).round() as u8
+}
+
+impl GammaTable {
+    /// The table of `inv_gamma` (255 bisections of 30 steps each).
+    pub fn new(inv_gamma: f32) -> GammaTable {
+        let one = 1.0f32.to_bits();
+        let start = std::array::from_fn(|i| {
+            let k = i as u8 + 1;
+            // Invariant: level(lo) < k ≤ level(hi); level(0) = 0 and level(1) = 255.
+            let (mut lo, mut hi) = (0u32, one);
+            while hi - lo > 1 {
+                let mid = lo + (hi - lo) / 2;
+                if gamma_level(f32::from_bits(mid), inv_gamma) >= k {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            f32::from_bits(hi)
+        });
+        GammaTable { inv_gamma, start }
+    }
+
+    /// The 8-bit level of linear value `c` (clamped to `[0, 1]`; NaN becomes 0).
+    #[inline]
+    pub fn encode(&self, c: f32) -> u8 {
+        if c.is_nan() {
+            return 0;
+        }
+        // `!(t > c)` counts thresholds at or below c (all 255 for c ≥ 1, none for c ≤ 0).
+        self.start.partition_point(|&t| t <= c) as u8
+    }
 }
 
 /// Writes 8-bit RGB pixels to `path` as PNG or binary PPM (P6), atomically: the bytes go to a
@@ -224,6 +286,35 @@ mod tests {
     }
 
     #[test]
+    fn the_gamma_table_gives_the_levels_of_its_definition() {
+        for gamma in [2.2f32, 1.8, 1.0] {
+            let inv = 1.0 / gamma;
+            let table = GammaTable::new(inv);
+            let mut s = 0x2545_f491u32;
+            let seeded = (0..50_000).map(|_| {
+                s ^= s << 13;
+                s ^= s >> 17;
+                s ^= s << 5;
+                // Uniform in [0, 1], and spread over the small values' exponents too.
+                let u = (s >> 8) as f32 / (1u32 << 24) as f32;
+                if s & 1 == 0 { u } else { u * u * u * u }
+            });
+            // Every threshold and its neighbours below and above: where the levels change.
+            let edges = table.start.iter().flat_map(|t| {
+                let b = t.to_bits();
+                [b - 1, b, b + 1].map(f32::from_bits)
+            });
+            for c in seeded.chain(edges).chain([0.0, 1.0, 1e-30, 0.999_999_9]) {
+                assert_eq!(
+                    table.encode(c),
+                    gamma_level(c, inv),
+                    "level of {c} at gamma {gamma}"
+                );
+            }
+        }
+    }
+
+    #[test]
     fn encode_applies_gamma_after_clamping() {
         assert_eq!(encode(0.0, 1.0 / 2.2), 0);
         assert_eq!(encode(1.0, 1.0 / 2.2), 255);
@@ -232,7 +323,7 @@ mod tests {
         assert_eq!(encode(f32::NAN, 1.0 / 2.2), 0);
         assert_eq!(
             encode(0.5, 1.0 / 2.2),
-            (255.0 * 0.5f32.powf(1.0 / 2.2)).round() as u8
+            (255.0 * arith::exp2(-1.0 / 2.2)).round() as u8
         );
     }
 

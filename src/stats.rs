@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::time::Duration;
 
-use crate::schedule::{Observer, Queues, Stage, StageRun};
+use crate::schedule::{Observer, Stage, StageRun};
 
 /// Totals for one (depth, stage) over all waves.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -13,7 +13,9 @@ pub struct StageStat {
     pub rays_in: u64,
     /// Rays the stage produced (hits, shadow rays, unoccluded rays, reflection rays).
     pub rays_out: u64,
-    /// Wall time.
+    /// The stage's share of the render's wall time: each call's wall time divided by the waves
+    /// traced at once ([`StageRun::waves_in_flight`]), so that on the wave-parallel path (one
+    /// wave per thread) the rates are the render's throughput, not one thread's.
     pub seconds: f64,
 }
 
@@ -62,10 +64,15 @@ impl Stats {
     }
 }
 
-/// Stats are collected by watching the schedule.
+/// Stats are collected from the schedule's stage records, which both of its paths give (so
+/// `--stats` measures the path a plain render takes).
 impl Observer for Stats {
-    fn after(&mut self, run: &StageRun, _queues: &Queues<'_>) {
-        self.record(run.stage, run.depth, run.rays_in, run.rays_out, run.elapsed);
+    fn stage_done(&mut self, run: &StageRun) {
+        let share = run.elapsed / run.waves_in_flight.max(1);
+        self.record(run.stage, run.depth, run.rays_in, run.rays_out, share);
+    }
+    fn watches_stages(&self) -> bool {
+        false
     }
 }
 

@@ -21,6 +21,7 @@ use std::ops::Range;
 use glam::Vec3;
 use rayon::prelude::*;
 
+use crate::arith;
 use crate::film::SampleBuffer;
 use crate::frame::Light;
 use crate::geometry::offset::gamma;
@@ -191,7 +192,7 @@ pub fn direct_light(
         } else {
             0.0
         };
-        c += m.ks * n_dot_h.powf(m.p);
+        c += m.ks * arith::pow(n_dot_h, m.p);
     }
     (c * light.intensity, n_dot_l)
 }
@@ -335,6 +336,37 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
 /// Hits per lane group of the shadow-ray kernels.
 const LANES: usize = 8;
 
+/// `x^p` lane by lane, bit for bit [`arith::pow`]: when every lane has the same integer exponent
+/// (one material, as neighbouring samples mostly have) square-and-multiply runs across the lanes
+/// at once, from the exponent's highest bit; other lanes take [`arith::pow`] one by one. Lanes
+/// whose power is not used (no specular, facing away, NaN) may hold any value.
+#[inline(always)]
+fn specular_power(x: &[f32; LANES], p: &[f32; LANES]) -> [f32; LANES] {
+    let shared = p.iter().all(|&q| q.to_bits() == p[0].to_bits());
+    match arith::integer_exponent(p[0]) {
+        Some(n) if shared => {
+            let mut r = [1.0f32; LANES];
+            let mut bit = match n {
+                0 => 0,
+                n => 1u32 << (31 - n.leading_zeros()),
+            };
+            while bit != 0 {
+                for l in 0..LANES {
+                    r[l] *= r[l];
+                }
+                if n & bit != 0 {
+                    for l in 0..LANES {
+                        r[l] *= x[l];
+                    }
+                }
+                bit >>= 1;
+            }
+            r
+        }
+        _ => std::array::from_fn(|l| arith::pow(x[l], p[l])),
+    }
+}
+
 /// 8 hits of the shaded queue in lanes: what `shadow_radiance` and `shadow_ray` read.
 struct HitLanes {
     p: [[f32; LANES]; 3],
@@ -409,8 +441,8 @@ impl HitLanes {
     }
 
     /// [`shadow_radiance`] of the 8 hits toward `light`, lane by lane in its operations' order
-    /// (the specular power through the same `powf`, one lane at a time), and a bit per lane whose
-    /// value is non-zero.
+    /// (the specular power as [`arith::pow`] gives it: [`specular_power`]), and a bit per lane
+    /// whose value is non-zero.
     #[inline(always)]
     fn radiance(&self, light: &Light) -> ([[f32; LANES]; 3], u32) {
         let lp = light.position;
@@ -439,14 +471,7 @@ impl HitLanes {
                 l_dir[k][l] = u[k];
             }
         }
-        let mut power = [0.0f32; LANES];
-        for l in 0..LANES {
-            // A lane facing away from the light (or NaN) stores zero below whatever its power:
-            // `powf` runs only where its value is used.
-            if self.spec[l] & valid[l] & (n_dot_l[l] > 0.0) {
-                power[l] = n_dot_h[l].powf(self.exponent[l]);
-            }
-        }
+        let power = specular_power(&n_dot_h, &self.exponent);
         let mut out = [[0.0f32; LANES]; 3];
         let mut mask = 0u32;
         for l in 0..LANES {
@@ -798,7 +823,7 @@ mod tests {
         let h = (l + Vec3::Z).normalize();
         let expected = Vec3::new(0.0, 0.2, 0.0)
             + Vec3::new(0.0, 0.5, 0.0) * l.z
-            + Vec3::splat(0.5) * h.z.powf(32.0);
+            + Vec3::splat(0.5) * arith::powi(h.z, 32);
         assert!(
             (emitted[0] - expected).abs().max_element() < 1e-6,
             "{} vs {expected}",
@@ -1065,6 +1090,25 @@ mod tests {
                         );
                     }
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn lane_specular_powers_are_the_scalar_ones_bit_for_bit() {
+        let x: [f32; LANES] = std::array::from_fn(|l| 0.05 + 0.12 * l as f32);
+        for p in [
+            [32.0; LANES],
+            [0.0; LANES],
+            [1.0; LANES],
+            [65_536.0; LANES],
+            [2.5; LANES],
+            std::array::from_fn(|l| [8.0, 32.0, 1.5, 100.0][l % 4]),
+        ] {
+            let lanes = specular_power(&x, &p);
+            for l in 0..LANES {
+                let want = arith::pow(x[l], p[l]);
+                assert_eq!(lanes[l].to_bits(), want.to_bits(), "{}^{}", x[l], p[l]);
             }
         }
     }

@@ -45,6 +45,7 @@ use crate::stages::shadow::{LitRays, ShadowTrace, add_unoccluded, intersect_occl
 use crate::stats::Stats;
 use crate::wave::Wave;
 use crate::world::World;
+use observer::RunLog;
 pub use observer::{Observer, Progress, Queues, StageRun};
 pub use stage::Stage;
 
@@ -337,8 +338,8 @@ pub fn render_observed(
 /// once per [`ShadowPass`] of at most `options.shadow_rows` shadow rays. When the observer
 /// [watches stages](Observer::watches_stages) (or on one thread) waves are traced one at a time,
 /// each kernel split over the threads; otherwise each thread traces whole waves, taking the next
-/// wave as it finishes one, with every kernel on that thread, and the waves reach the sink in
-/// order. The image is the same either way (every kernel is deterministic). Stops early, after a
+/// wave as it finishes one, with every kernel on that thread, and the waves (with their stage
+/// records, [`Observer::stage_done`]) reach the sink and the observer in order. The image is the same either way (every kernel is deterministic). Stops early, after a
 /// wave, when the sink no longer [accepts](PixelSink::accepts) pixels. The sink
 /// receives the pixels of [`RenderOptions::region_of`] the scene, row-major within the region.
 pub fn render_into(
@@ -363,20 +364,20 @@ pub fn render_into(
     let mut done = 0;
     let traced_lights = pipeline.traced_lights(world);
     let threads = rayon::current_num_threads();
-    let trace = |wave: &Wave, ws: &mut WaveQueues, observer: &mut dyn Observer| {
-        trace_wave(
-            (scene, world, &pipeline),
-            options,
-            traced_lights,
-            wave,
-            ws,
-            observer,
-        );
-    };
     let pools = if observer.watches_stages() || threads == 1 {
         None
     } else {
         wave_pools(threads)
+    };
+    let in_flight = pools.as_ref().map_or(1, |p| p.len() as u32);
+    let trace = |wave: &Wave, ws: &mut WaveQueues, observer: &mut dyn Observer| {
+        trace_wave(
+            (scene, world, &pipeline),
+            (options, traced_lights, in_flight),
+            wave,
+            ws,
+            observer,
+        );
     };
     let Some(pools) = pools else {
         // One wave at a time, each stage's kernels over all threads; observers see every call.
@@ -398,7 +399,7 @@ pub fn render_into(
     // calling thread hands finished waves to the sink in wave order (a reorder buffer).
     let next = Mutex::new(waves(scene, options).enumerate());
     let stop = AtomicBool::new(false);
-    let (send, receive) = crossbeam_channel::unbounded::<(usize, Wave, Vec<Vec3>)>();
+    let (send, receive) = crossbeam_channel::unbounded::<(usize, Wave, Vec<Vec3>, RunLog)>();
     std::thread::scope(|scope| {
         for pool in &pools {
             let send = send.clone();
@@ -411,8 +412,9 @@ pub fn render_into(
                             else {
                                 break;
                             };
-                            trace(&wave, ws, &mut ());
-                            if send.send((i, wave, ws.pixels.clone())).is_err() {
+                            let mut log = RunLog::default();
+                            trace(&wave, ws, &mut log);
+                            if send.send((i, wave, ws.pixels.clone(), log)).is_err() {
                                 break;
                             }
                         }
@@ -423,9 +425,12 @@ pub fn render_into(
         drop(send);
         let mut pending = BTreeMap::new();
         let mut expected = 0;
-        for (i, wave, px) in receive.iter() {
-            pending.insert(i, (wave, px));
-            while let Some((wave, px)) = pending.remove(&expected) {
+        for (i, wave, px, log) in receive.iter() {
+            pending.insert(i, (wave, px, log));
+            while let Some((wave, px, log)) = pending.remove(&expected) {
+                for run in &log.0 {
+                    observer.stage_done(run);
+                }
                 sink.put(PixelIndex(wave.first), &px);
                 done += u64::from(wave.pixels);
                 observer.wave_done(done, total);
@@ -477,8 +482,7 @@ fn wave_pools(threads: usize) -> Option<Vec<rayon::ThreadPool>> {
 /// once per [`ShadowPass`]), then resolves the wave's samples into `ws.pixels`.
 fn trace_wave(
     (scene, world, pipeline): (&Scene, &World, &Pipeline),
-    options: &RenderOptions,
-    traced_lights: usize,
+    (options, traced_lights, waves_in_flight): (&RenderOptions, usize, u32),
     wave: &Wave,
     ws: &mut WaveQueues,
     observer: &mut dyn Observer,
@@ -496,8 +500,10 @@ fn trace_wave(
                 rays_in,
                 rays_out,
                 elapsed: start.elapsed(),
+                waves_in_flight,
             };
             observer.after(&run, &ws.queues(wave));
+            observer.stage_done(&run);
         };
         for &stage in &plan.stages {
             match stage {
@@ -607,5 +613,60 @@ pub fn run_stage(
             );
             (ws.hits.len(), ws.next.len())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::builtin::spheres;
+
+    fn stats_on(threads: usize, scene: &Scene, world: &World) -> (Stats, Vec<u32>) {
+        /// Stage records only, as `--stats` takes them, plus how many waves were in flight.
+        #[derive(Default)]
+        struct Records(Stats, Vec<u32>);
+        impl Observer for Records {
+            fn stage_done(&mut self, run: &StageRun) {
+                self.0.stage_done(run);
+                self.1.push(run.waves_in_flight);
+            }
+            fn watches_stages(&self) -> bool {
+                self.0.watches_stages()
+            }
+        }
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
+        let mut records = Records::default();
+        pool.install(|| render_observed(scene, world, &RenderOptions::default(), &mut records));
+        (records.0, records.1)
+    }
+
+    /// Regression (issue 20): collecting statistics made the render trace one wave at a time
+    /// (kernels split over the threads), so `render --threads 2` barely used the second core and
+    /// `--stats` measured a path no plain render took.
+    #[test]
+    fn statistics_are_taken_on_the_wave_parallel_path() {
+        let mut scene = spheres();
+        (scene.image.width, scene.image.height, scene.image.samples) = (64, 64, 2);
+        let world = World::load(&scene).unwrap();
+        let (one, flights_one) = stats_on(1, &scene, &world);
+        let (two, flights_two) = stats_on(2, &scene, &world);
+        assert!(flights_one.iter().all(|&n| n == 1));
+        assert!(!flights_two.is_empty() && flights_two.iter().all(|&n| n == 2));
+        // The same calls, counted the same way, whichever path traced them.
+        let counts = |s: &Stats| {
+            s.entries
+                .iter()
+                .map(|(k, e)| (*k, e.rays_in, e.rays_out))
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(counts(&one), counts(&two));
+        assert!(
+            counts(&one)
+                .iter()
+                .any(|&((_, s), n, _)| s == Stage::Intersect && n > 0)
+        );
     }
 }

@@ -44,20 +44,29 @@ pub struct StageRun {
     pub rays_out: usize,
     /// Wall time of the call.
     pub elapsed: Duration,
+    /// Waves traced at once while the call ran: 1 when waves are traced one at a time (each
+    /// kernel split over all threads), the number of threads when each thread traces its own
+    /// waves. The call's share of the render's wall time is `elapsed / waves_in_flight`.
+    pub waves_in_flight: u32,
 }
 
 /// Watches a render. Every method has an empty default.
 pub trait Observer {
     /// Called before each stage call.
     fn before(&mut self, _stage: Stage, _depth: u32, _queues: &Queues<'_>) {}
-    /// Called after each stage call.
+    /// Called after each stage call, with the queues as the stage left them (only when the
+    /// observer [watches stages](Observer::watches_stages)).
     fn after(&mut self, _run: &StageRun, _queues: &Queues<'_>) {}
+    /// Called with every stage call's record, in wave order then call order, whichever way the
+    /// schedule traces the waves (one at a time, or one per thread: then after the wave is done).
+    /// An observer that needs only these records (statistics) need not watch stages.
+    fn stage_done(&mut self, _run: &StageRun) {}
     /// Called after each wave is resolved into the film, with pixels done and total.
     fn wave_done(&mut self, _done: u64, _total: u64) {}
-    /// True when the observer watches stage calls ([`Observer::before`], [`Observer::after`]):
-    /// the schedule then traces one wave at a time, each stage's kernels split over the threads.
-    /// False (an observer of waves only) lets it trace one wave per thread at once, every
-    /// wave's stages in the same order.
+    /// True when the observer watches stage calls with their queues ([`Observer::before`],
+    /// [`Observer::after`]): the schedule then traces one wave at a time, each stage's kernels
+    /// split over the threads. False (an observer of waves and stage records only) lets it trace
+    /// one wave per thread at once, every wave's stages in the same order, as a plain render does.
     fn watches_stages(&self) -> bool {
         true
     }
@@ -80,6 +89,10 @@ impl<A: Observer, B: Observer> Observer for (A, B) {
         self.0.after(run, queues);
         self.1.after(run, queues);
     }
+    fn stage_done(&mut self, run: &StageRun) {
+        self.0.stage_done(run);
+        self.1.stage_done(run);
+    }
     fn wave_done(&mut self, done: u64, total: u64) {
         self.0.wave_done(done, total);
         self.1.wave_done(done, total);
@@ -96,11 +109,28 @@ impl<O: Observer + ?Sized> Observer for &mut O {
     fn after(&mut self, run: &StageRun, queues: &Queues<'_>) {
         (**self).after(run, queues);
     }
+    fn stage_done(&mut self, run: &StageRun) {
+        (**self).stage_done(run);
+    }
     fn wave_done(&mut self, done: u64, total: u64) {
         (**self).wave_done(done, total);
     }
     fn watches_stages(&self) -> bool {
         (**self).watches_stages()
+    }
+}
+
+/// The stage records of one wave, kept by the thread that traced it until the wave reaches the
+/// observer (the wave-parallel path replays them in wave order).
+#[derive(Debug, Default)]
+pub(crate) struct RunLog(pub(crate) Vec<StageRun>);
+
+impl Observer for RunLog {
+    fn stage_done(&mut self, run: &StageRun) {
+        self.0.push(*run);
+    }
+    fn watches_stages(&self) -> bool {
+        false
     }
 }
 

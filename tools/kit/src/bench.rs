@@ -12,6 +12,7 @@
 //! warm-up, criterion does its own sampling. Peers (a recursive C tracer, Embree 4) are measured
 //! outside the project, side by side in one run, by `../shared/peers/compare`.
 
+use std::collections::BTreeMap;
 use std::fmt;
 use std::time::Instant;
 
@@ -412,6 +413,9 @@ pub struct Report {
     pub notes: Vec<String>,
     /// How close the frame runs to the memory-bandwidth bound.
     pub traffic: Option<Traffic>,
+    /// Bytes of queue traffic per ray, per (stage label, depth), over a whole frame (scenes
+    /// without a mesh, like [`Report::traffic`]).
+    pub bytes_per_ray: BTreeMap<(String, u32), f64>,
 }
 
 /// Queue traffic of a frame against the machine's measured memory bandwidth.
@@ -431,15 +435,25 @@ pub struct Traffic {
 /// stage call touches every column its kernels declare ([`Stage::columns`]) once per row of that
 /// column's queue as the stage leaves it (the wave's samples: once per row added, read and
 /// written). An [`Observer`] of the schedule.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct TrafficMeter {
     /// Bytes counted so far.
     pub bytes: u64,
+    /// Per (depth, stage): bytes counted and rays handled (written by `generate`, read by the
+    /// others), for the bytes of queue traffic per ray of each stage.
+    pub per_stage: BTreeMap<(u32, Stage), (u64, u64)>,
 }
 
 impl Observer for TrafficMeter {
     fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
-        self.bytes += queue_traffic_bytes(run, q);
+        let bytes = queue_traffic_bytes(run, q);
+        self.bytes += bytes;
+        let rays = match run.stage {
+            Stage::Generate => run.rays_out,
+            _ => run.rays_in,
+        };
+        let e = self.per_stage.entry((run.depth, run.stage)).or_default();
+        (e.0, e.1) = (e.0 + bytes, e.1 + rays as u64);
     }
 }
 
@@ -516,13 +530,22 @@ impl fmt::Display for Report {
         )?;
         writeln!(
             f,
-            "{:<10} {:>5} {:>10} {:>10} {:>10}",
-            "stage", "depth", "rays", "ms", "Mrays/s"
+            "{:<10} {:>5} {:>10} {:>10} {:>10} {:>8} {:>7}",
+            "stage", "depth", "rays", "ms", "Mrays/s", "ns/ray", "B/ray"
         )?;
         for r in &self.stages {
+            let ns = if r.rays > 0 {
+                format!("{:.2}", r.seconds * 1e9 / r.rays as f64)
+            } else {
+                "-".into()
+            };
+            let bytes = self
+                .bytes_per_ray
+                .get(&(r.stage.clone(), r.depth))
+                .map_or("-".into(), |b| format!("{b:.0}"));
             write!(
                 f,
-                "{:<10} {:>5} {:>10} {:>10.3} {:>10.1}",
+                "{:<10} {:>5} {:>10} {:>10.3} {:>10.1} {ns:>8} {bytes:>7}",
                 r.stage,
                 r.depth,
                 r.rays,
@@ -629,6 +652,12 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
         let samples =
             scene.image.width as f64 * scene.image.height as f64 * scene.image.samples as f64;
         let bytes = traffic.bytes as f64 / samples;
+        for (&(depth, stage), &(b, rays)) in &traffic.per_stage {
+            if rays > 0 {
+                let key = (stage.label().to_string(), depth);
+                report.bytes_per_ray.insert(key, b as f64 / rays as f64);
+            }
+        }
         report.traffic = Some(Traffic {
             samples_per_s: samples / frame,
             bytes_per_sample: bytes,
@@ -753,6 +782,12 @@ mod tests {
             &mut generate_only,
         );
         assert_eq!(only.bytes, generate);
+        assert_eq!(
+            only.per_stage.get(&(0, Stage::Generate)),
+            Some(&(generate, rays))
+        );
+        let summed: u64 = meter.per_stage.values().map(|&(b, _)| b).sum();
+        assert_eq!(summed, meter.bytes);
     }
 
     /// Meters the generate stage alone.
