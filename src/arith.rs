@@ -139,15 +139,39 @@ pub fn exp2(y: f32) -> f32 {
 /// `tan(x)` for `|x| < π/2` (a camera's half field of view), from the sine and cosine series
 /// summed in f64 to the 30th power (truncation below 1e-16 relative for `|x| ≤ π/2`).
 pub fn tan(x: f64) -> f64 {
+    let (sin, cos) = sin_cos_series(x, 15);
+    sin / cos
+}
+
+/// `(sin 2πx, cos 2πx)` for any finite `x` (an orbit's turn): `x` is reduced exactly to an
+/// eighth of a turn around a multiple of a quarter, the series are summed there to the 19th and
+/// 18th powers (truncation below 1e-19), and the quarter is applied by symmetry, so quarter
+/// turns are exact (`(1, 0)` at `x = 0.25`).
+pub fn sin_cos_turns(x: f64) -> (f64, f64) {
+    let r = x - x.round(); // exact, in [-0.5, 0.5]
+    let q = (r * 4.0).round(); // quarter turns, -2..=2
+    let y = r - q * 0.25; // exact, in [-1/8, 1/8]
+    let (sin, cos) = sin_cos_series(y * std::f64::consts::TAU, 9);
+    match (q as i64).rem_euclid(4) {
+        0 => (sin, cos),
+        1 => (cos, -sin),
+        2 => (-sin, -cos),
+        _ => (-cos, sin),
+    }
+}
+
+/// `(sin x, cos x)` from their Taylor series to the powers `2·terms + 1` and `2·terms`, in
+/// Horner form: `sin x = x·(1 − x²/(2·3)·(1 − x²/(4·5)·(…)))`,
+/// `cos x = 1 − x²/(1·2)·(1 − x²/(3·4)·(…))`.
+fn sin_cos_series(x: f64, terms: u32) -> (f64, f64) {
     let x2 = x * x;
     let (mut sin, mut cos) = (1.0, 1.0);
-    // sin x = x·(1 − x²/(2·3)·(1 − x²/(4·5)·(…))), cos x = 1 − x²/(1·2)·(1 − x²/(3·4)·(…)).
-    for n in (1..=15).rev() {
+    for n in (1..=terms).rev() {
         let n = f64::from(n);
         sin = 1.0 - x2 / ((2.0 * n) * (2.0 * n + 1.0)) * sin;
         cos = 1.0 - x2 / ((2.0 * n - 1.0) * (2.0 * n)) * cos;
     }
-    x * sin / cos
+    (x * sin, cos)
 }
 
 #[cfg(test)]
@@ -271,6 +295,22 @@ mod tests {
             if deg <= 160 {
                 assert!(((got as f32).to_bits()).abs_diff((want as f32).to_bits()) <= 1);
             }
+        }
+    }
+
+    #[test]
+    fn sine_and_cosine_of_turns_match_the_library_and_are_exact_on_quarters() {
+        assert_eq!(sin_cos_turns(0.0), (0.0, 1.0));
+        assert_eq!(sin_cos_turns(0.25), (1.0, -0.0));
+        assert_eq!(sin_cos_turns(-0.25), (-1.0, 0.0));
+        assert_eq!(sin_cos_turns(0.5).1, -1.0);
+        assert_eq!(sin_cos_turns(3.0), (0.0, 1.0));
+        for i in -2000..=2000 {
+            let x = i as f64 / 997.0;
+            let (s, c) = sin_cos_turns(x);
+            let a = x * std::f64::consts::TAU;
+            assert!((s - a.sin()).abs() < 4e-16 * (1.0 + a.abs()), "sin at {x}");
+            assert!((c - a.cos()).abs() < 4e-16 * (1.0 + a.abs()), "cos at {x}");
         }
     }
 }

@@ -9,7 +9,7 @@
 //!
 //! Orbits: frame `f` of `N` puts the eye at `eye` rotated about the axis through `look_at` along
 //! `up` by `turns · f / N` of a full turn (Rodrigues' formula), so its distance to `look_at` stays
-//! that of frame 0. The rotation's sine and cosine come from [`sin_cos_turns`], built from basic
+//! that of frame 0. The rotation's sine and cosine come from [`crate::arith::sin_cos_turns`], built from basic
 //! operations only, so an orbit's frames are the same bits on every CPU (SPEC §2).
 
 use glam::DVec3;
@@ -168,7 +168,7 @@ impl Orbit {
             return self.start;
         }
         let turn = self.turns * f64::from(frame) / f64::from(self.frames);
-        let (sin, cos) = sin_cos_turns(turn);
+        let (sin, cos) = crate::arith::sin_cos_turns(turn);
         let k = self.start.up.normalize();
         let v = self.start.eye - self.start.look_at;
         // Rodrigues: v cos θ + (k × v) sin θ + k (k · v)(1 − cos θ).
@@ -209,33 +209,6 @@ pub fn centripetal_catmull_rom(p: [DVec3; 4], s: f64) -> DVec3 {
     let b1 = mix(a1, a2, t0, t2);
     let b2 = mix(a2, a3, t1, t3);
     mix(b1, b2, t1, t2)
-}
-
-/// `(sin 2πx, cos 2πx)` from basic f64 operations only (no platform `libm`, SPEC §2): `x` is
-/// reduced exactly to an eighth of a turn around a multiple of a quarter, the Taylor series of
-/// sine and cosine there are summed to their 19th and 18th powers (truncation below 1e-19), and
-/// the quarter is applied by symmetry, so quarter turns are exact (`(1, 0)` at `x = 0.25`).
-pub fn sin_cos_turns(x: f64) -> (f64, f64) {
-    let r = x - x.round(); // exact, in [-0.5, 0.5]
-    let q = (r * 4.0).round(); // quarter turns, -2..=2
-    let y = r - q * 0.25; // exact, in [-1/8, 1/8]
-    let a = y * std::f64::consts::TAU;
-    let a2 = a * a;
-    // Horner in a²: sin a = a (1 − a²/3! (1 − a²/(4·5) (1 − …))), likewise cos.
-    let mut sin = 1.0;
-    let mut cos = 1.0;
-    for n in (1..=9).rev() {
-        let k = 2.0 * n as f64;
-        sin = 1.0 - a2 / (k * (k + 1.0)) * sin;
-        cos = 1.0 - a2 / (k * (k - 1.0)) * cos;
-    }
-    let sin = a * sin;
-    match (q as i64).rem_euclid(4) {
-        0 => (sin, cos),
-        1 => (cos, -sin),
-        2 => (-sin, -cos),
-        _ => (-cos, sin),
-    }
 }
 
 impl Scene {
@@ -369,22 +342,6 @@ mod tests {
         let eighth = o.view_at(1).eye;
         let c = 5.0 * std::f64::consts::FRAC_1_SQRT_2;
         assert!(eighth.distance(DVec3::new(c, 0.0, c)) < 1e-14, "{eighth}");
-    }
-
-    #[test]
-    fn sine_and_cosine_of_turns_match_the_library_and_are_exact_on_quarters() {
-        assert_eq!(sin_cos_turns(0.0), (0.0, 1.0));
-        assert_eq!(sin_cos_turns(0.25), (1.0, -0.0));
-        assert_eq!(sin_cos_turns(-0.25), (-1.0, 0.0));
-        assert_eq!(sin_cos_turns(0.5).1, -1.0);
-        assert_eq!(sin_cos_turns(3.0), (0.0, 1.0));
-        for i in -2000..=2000 {
-            let x = i as f64 / 997.0;
-            let (s, c) = sin_cos_turns(x);
-            let a = x * std::f64::consts::TAU;
-            assert!((s - a.sin()).abs() < 4e-16 * (1.0 + a.abs()), "sin at {x}");
-            assert!((c - a.cos()).abs() < 4e-16 * (1.0 + a.abs()), "cos at {x}");
-        }
     }
 
     fn view(eye: DVec3, look_at: DVec3) -> LookAt {
