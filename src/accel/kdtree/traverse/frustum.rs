@@ -52,7 +52,7 @@ use super::single::Entry;
 use super::visit::{Closest, Visitor};
 use crate::accel::kdtree::{MAX_DEPTH, TriHit};
 use crate::geometry::triangle::WatertightRay;
-use crate::simd::{Kernel, Level, bits, max_ps, min_ps};
+use crate::simd::{Level, Wide, WideKernel, bits, dispatch_wide, max_ps, min_ps};
 use rayon::prelude::*;
 
 /// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
@@ -263,11 +263,11 @@ struct Runs<'a> {
     out_tri: &'a mut [u32],
 }
 
-impl Kernel for Runs<'_> {
+impl WideKernel for Runs<'_> {
     type Output = ();
 
     #[inline(always)]
-    fn run(self, level: Level) {
+    fn run<V: Wide>(self) {
         let Runs {
             accel,
             origins,
@@ -304,10 +304,7 @@ impl Kernel for Runs<'_> {
                 t_max,
                 rows,
             };
-            match level {
-                Level::Avx512 => accel.frustum::<16>(&rays, t, tri, true, f, stack, tmp),
-                _ => accel.frustum::<8>(&rays, t, tri, true, f, stack, tmp),
-            }
+            accel.frustum::<V>(&rays, t, tri, true, f, stack, tmp);
         }
         put_scratch(scratch);
     }
@@ -401,32 +398,42 @@ fn step_lanes<const G: usize>(
     (bits(&go_near), bits(&go_far))
 }
 
-/// The smallest of `a` (`minps` semantics, over every lane: lanes outside an entry's mask hold
-/// either the neutral `+∞` or a value of the node's parent step, so the result is a lower bound
-/// of the live lanes', which is all interval arithmetic needs).
+/// The smallest lane of `x` (`minps` semantics; the bounds below hold no NaN).
 #[inline(always)]
-fn min_all<const G: usize>(a: &[f32; WIDE]) -> f32 {
-    let mut m = [f32::INFINITY; G];
-    for g in 0..WIDE / G {
-        let x = lanes::<G, f32>(a, g);
-        for j in 0..G {
-            m[j] = min_ps(x[j], m[j]);
-        }
-    }
-    m.into_iter().fold(f32::INFINITY, min_ps)
+fn lowest<V: Wide>(x: V) -> f32 {
+    let mut a = [0.0f32; 16];
+    x.store(&mut a);
+    a[..V::LANES]
+        .iter()
+        .fold(f32::INFINITY, |m, &v| min_ps(v, m))
 }
 
-/// The largest of `a` (see [`min_all`]).
+/// The largest lane of `x` (see [`lowest`]).
 #[inline(always)]
-fn max_all<const G: usize>(a: &[f32; WIDE]) -> f32 {
-    let mut m = [f32::NEG_INFINITY; G];
-    for g in 0..WIDE / G {
-        let x = lanes::<G, f32>(a, g);
-        for j in 0..G {
-            m[j] = max_ps(x[j], m[j]);
-        }
-    }
-    m.into_iter().fold(f32::NEG_INFINITY, max_ps)
+fn highest<V: Wide>(x: V) -> f32 {
+    let mut a = [0.0f32; 16];
+    x.store(&mut a);
+    a[..V::LANES]
+        .iter()
+        .fold(f32::NEG_INFINITY, |m, &v| max_ps(v, m))
+}
+
+/// Lanes where `x` is finite (`x − x` is zero exactly there).
+#[inline(always)]
+fn finite<V: Wide>(x: V) -> V::Mask {
+    V::eq(x.sub(x), V::splat(0.0))
+}
+
+/// `f32::min` per lane: the other operand where one is NaN, else the smaller.
+#[inline(always)]
+fn min_num<V: Wide>(a: V, b: V) -> V {
+    V::select(V::eq(a, a), b.min(a), b)
+}
+
+/// `f32::max` per lane: the other operand where one is NaN, else the larger.
+#[inline(always)]
+fn max_num<V: Wide>(a: V, b: V) -> V {
+    V::select(V::eq(a, a), b.max(a), b)
 }
 
 /// Bits of the lanes `k` of `mask` with `t0[k] <= cull[k]` (a NaN `t0` is dropped, as the single
@@ -535,7 +542,7 @@ impl KdAccel {
     /// Returns false, having written nothing, when the batch is too small to be worth
     /// regrouping or its rays come from many origins too far apart ([`KdAccel::too_spread`]).
     #[inline(always)]
-    pub(super) fn closest_frusta<const G: usize>(
+    pub(super) fn closest_frusta<V: Wide>(
         &self,
         origins: &[Vec3],
         dirs: &[Vec3],
@@ -592,7 +599,7 @@ impl KdAccel {
                     t_max,
                     rows,
                 };
-                self.frustum::<G>(&rays, out_t, out_tri, false, f, stack, tmp);
+                self.frustum::<V>(&rays, out_t, out_tri, false, f, stack, tmp);
             }
             i = end;
         }
@@ -676,7 +683,7 @@ impl KdAccel {
                 out_t,
                 out_tri,
             };
-            crate::simd::dispatch(level, k)
+            dispatch_wide(level, k)
         };
         // Rays from many origins: the first two frusta decide, as in `closest_frusta`.
         let rows_of = runs
@@ -852,12 +859,14 @@ impl KdAccel {
         }
     }
 
-    /// Traces the rays `rays.rows` (at most [`WIDE`], one permutation) as one frustum. The
-    /// per-lane setup is `Ray::new` and `Ray::clip` written over the lanes (same operations).
-    /// Answers go to `out_*[row]`, or with `local` to `out_*[lane]` (tracing order).
+    /// Traces the rays `rays.rows` (at most [`WIDE`], one permutation) as one frustum, `V` lanes
+    /// per SIMD step. The per-lane setup is `Ray::new` and `Ray::clip` written over the lanes
+    /// (the same operations; `f32::min`/`max`, which ignore a NaN operand, as [`min_num`] and
+    /// [`max_num`]). Answers go to `out_*[row]`, or with `local` to `out_*[lane]` (tracing
+    /// order).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn frustum<const G: usize>(
+    fn frustum<V: Wide>(
         &self,
         rays: &Rows<'_>,
         out_t: &mut [f32],
@@ -869,7 +878,6 @@ impl KdAccel {
     ) {
         let mut entry = WideEntry::default();
         let mut d = [[1.0f32; WIDE]; 3];
-        let mut live = [false; WIDE];
         for (lane, &r) in rays.rows.iter().enumerate() {
             let r = r as usize;
             let dir = rays.dirs[r];
@@ -892,49 +900,102 @@ impl KdAccel {
             [kx, ky, kz]
         };
         let [kx, ky, _] = axes;
-        let (lo, hi) = (self.root.0, self.root.1);
-        for k in 0..WIDE {
-            let o = [f.org[0][k], f.org[1][k], f.org[2][k]];
-            let origin_ok = o.iter().all(|x| x.is_finite());
+        f.best_t = [f32::INFINITY; WIDE];
+        f.best_tri = [u32::MAX; WIDE];
+        f.cull = [f32::INFINITY; WIDE];
+        f.limit = f.t_max;
+        let w = V::LANES;
+        let (zero, inf, ninf) = (
+            V::splat(0.0),
+            V::splat(f32::INFINITY),
+            V::splat(f32::NEG_INFINITY),
+        );
+        // (No closures over lanes: a closure is not compiled with the kernel's target features.)
+        let (r0, r1) = (self.root.0, self.root.1);
+        let root = [
+            [V::splat(r0[0]), V::splat(r0[1]), V::splat(r0[2])],
+            [V::splat(r1[0]), V::splat(r1[1]), V::splat(r1[2])],
+        ];
+        // Interval-arithmetic bounds over the live lanes (the neutral value elsewhere).
+        let mut org_lo = [inf; 3];
+        let mut org_hi = [ninf; 3];
+        let mut inv_lo = [inf; 3];
+        let mut inv_hi = [ninf; 3];
+        let mut slack_hi = [ninf; 3];
+        let (mut lo, mut hi) = (inf, ninf);
+        let mut mask = 0u64;
+        for g in 0..WIDE / w {
+            let at = g * w;
+            let o = [
+                V::load(&f.org[0][at..]),
+                V::load(&f.org[1][at..]),
+                V::load(&f.org[2][at..]),
+            ];
+            let dv = [
+                V::load(&d[0][at..]),
+                V::load(&d[1][at..]),
+                V::load(&d[2][at..]),
+            ];
+            let tm = V::load(&f.t_max[at..]);
+            let origin_ok = V::and(V::and(finite(o[0]), finite(o[1])), finite(o[2]));
             // `Ray::new`'s `δ`: the L∞ distance to the farthest root corner.
-            let reach = (0..3)
-                .map(|a| (lo[a] - o[a]).abs().max((hi[a] - o[a]).abs()))
-                .fold(f32::NEG_INFINITY, f32::max);
-            let delta = DELTA * reach;
-            let tm = f.t_max[k];
-            // `WatertightRay::new`'s shear and its test for a direction it rejects.
-            let dz = d[kz][k];
-            let sz = 1.0 / dz;
-            let sx = d[kx][k] / dz;
-            let sy = d[ky][k] / dz;
-            let test_ok = sz.is_finite() && sx.is_finite() && sy.is_finite() && origin_ok;
-            (f.sx[k], f.sy[k], f.sz[k]) = (sx, sy, sz);
-            f.best_t[k] = f32::INFINITY;
-            f.best_tri[k] = u32::MAX;
-            f.limit[k] = tm;
-            f.cull[k] = f32::INFINITY;
-            let mut t0 = 0.0f32;
-            let mut t1 = tm;
+            let mut reach = ninf;
             for a in 0..3 {
-                let inv = 1.0 / d[a][k];
-                let slack = (inv.abs() * delta).min(f32::MAX);
-                f.inv[a][k] = inv;
-                f.slack[a][k] = slack;
-                let ta = (lo[a] - o[a]) * inv;
-                let tb = (hi[a] - o[a]) * inv;
-                let (near, far) = (ta.min(tb), ta.max(tb));
-                t0 = t0.max(near - slack);
-                t1 = t1.min(far + slack);
+                let r = root[0][a].sub(o[a]).abs().max(root[1][a].sub(o[a]).abs());
+                reach = reach.max(r);
+            }
+            let delta = V::splat(DELTA).mul(reach);
+            // `WatertightRay::new`'s shear and its test for a direction it rejects.
+            let dz = dv[kz];
+            let sz = V::splat(1.0).div(dz);
+            let sx = dv[kx].div(dz);
+            let sy = dv[ky].div(dz);
+            let test_ok = V::and(
+                V::and(V::and(finite(sz), finite(sx)), finite(sy)),
+                origin_ok,
+            );
+            sx.store(&mut f.sx[at..]);
+            sy.store(&mut f.sy[at..]);
+            sz.store(&mut f.sz[at..]);
+            let mut t0 = zero;
+            let mut t1 = tm;
+            let mut inv = [zero; 3];
+            let mut slack = [zero; 3];
+            for a in 0..3 {
+                inv[a] = V::splat(1.0).div(dv[a]);
+                slack[a] = inv[a].abs().mul(delta).min(V::splat(f32::MAX));
+                inv[a].store(&mut f.inv[a][at..]);
+                slack[a].store(&mut f.slack[a][at..]);
+                let ta = root[0][a].sub(o[a]).mul(inv[a]);
+                let tb = root[1][a].sub(o[a]).mul(inv[a]);
+                let (near, far) = (min_num(ta, tb), max_num(ta, tb));
+                t0 = max_num(t0, near.sub(slack[a]));
+                t1 = min_num(t1, far.add(slack[a]));
             }
             // A bad `t_max` (NaN, `<= 0`) or a ray missing the root box: no hit.
-            live[k] = test_ok && tm > 0.0 && t0 <= t1 * HI;
-            // Lanes that are not live hold the neutral interval of the bounds (`min_all`).
-            entry.t0[k] = if live[k] { t0.max(0.0) } else { f32::INFINITY };
-            entry.t1[k] = if live[k] { t1 } else { f32::NEG_INFINITY };
+            let live = V::and(
+                V::and(test_ok, V::gt(tm, zero)),
+                V::le(t0, t1.mul(V::splat(HI))),
+            );
+            mask |= (V::bits(live) as u64) << at;
+            // Lanes that are not live hold the neutral interval of the bounds.
+            let e0 = V::select(live, t0.max(zero), inf);
+            let e1 = V::select(live, t1, ninf);
+            e0.store(&mut entry.t0[at..]);
+            e1.store(&mut entry.t1[at..]);
+            lo = e0.min(lo);
+            hi = e1.max(hi);
+            for a in 0..3 {
+                org_lo[a] = V::select(live, o[a], inf).min(org_lo[a]);
+                org_hi[a] = V::select(live, o[a], ninf).max(org_hi[a]);
+                inv_lo[a] = V::select(live, inv[a], inf).min(inv_lo[a]);
+                inv_hi[a] = V::select(live, inv[a], ninf).max(inv_hi[a]);
+                slack_hi[a] = V::select(live, slack[a], ninf).max(slack_hi[a]);
+            }
         }
-        entry.mask = bits(&live);
+        entry.mask = mask;
         for (lane, &r) in rays.rows.iter().enumerate() {
-            if !live[lane] {
+            if mask >> lane & 1 == 0 {
                 let at = if local { lane } else { r as usize };
                 (out_t[at], out_tri[at]) = (f32::INFINITY, u32::MAX);
             }
@@ -944,19 +1005,20 @@ impl KdAccel {
         }
         f.k = axes.map(|x| x.min(2));
         for a in 0..3 {
-            let only = |x: &[f32; WIDE], none: f32| -> [f32; WIDE] {
-                std::array::from_fn(|k| if live[k] { x[k] } else { none })
-            };
-            f.org_lo[a] = min_all::<G>(&only(&f.org[a], f32::INFINITY));
-            f.org_hi[a] = max_all::<G>(&only(&f.org[a], f32::NEG_INFINITY));
-            f.inv_lo[a] = min_all::<G>(&only(&f.inv[a], f32::INFINITY));
-            f.inv_hi[a] = max_all::<G>(&only(&f.inv[a], f32::NEG_INFINITY));
-            f.slack_hi[a] = max_all::<G>(&only(&f.slack[a], f32::NEG_INFINITY));
+            f.org_lo[a] = lowest(org_lo[a]);
+            f.org_hi[a] = highest(org_hi[a]);
+            f.inv_lo[a] = lowest(inv_lo[a]);
+            f.inv_hi[a] = highest(inv_hi[a]);
+            f.slack_hi[a] = highest(slack_hi[a]);
         }
-        entry.lo = min_all::<G>(&entry.t0);
-        entry.hi = max_all::<G>(&entry.t1);
+        entry.lo = lowest(lo);
+        entry.hi = highest(hi);
         let lanes = entry.mask;
-        self.walk_frustum::<G>(f, entry, stack, tmp);
+        if w == 16 {
+            self.walk_frustum::<16>(f, entry, stack, tmp);
+        } else {
+            self.walk_frustum::<8>(f, entry, stack, tmp);
+        }
         for (lane, &r) in rays.rows.iter().enumerate() {
             if lanes >> lane & 1 != 0 {
                 let at = if local { lane } else { r as usize };

@@ -60,7 +60,7 @@ use super::{KdTree, TriHit, exact_root};
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
 use crate::scene::TriangleTest;
-use crate::simd::{Kernel, Level, dispatch};
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
 pub use bundle::BundleCounts;
 use visit::{Closest, Occluded};
 
@@ -189,9 +189,10 @@ impl KdAccel {
     ) {
         let n = origins.len();
         assert!(dirs.len() == n && t_max.len() == n && out_t.len() == n && out_tri.len() == n);
-        dispatch(
+        dispatch_wide(
             level,
             ClosestBatch {
+                level,
                 accel: self,
                 origins,
                 dirs,
@@ -251,8 +252,10 @@ impl KdAccel {
     }
 }
 
-/// The closest-hit batch as a [`Kernel`]: compiled once per SIMD level.
+/// The closest-hit batch as a [`WideKernel`]: compiled once per SIMD level.
 struct ClosestBatch<'a> {
+    /// The level it is compiled for (for the parallel path's own dispatch).
+    level: Level,
     /// The accelerator.
     accel: &'a KdAccel,
     /// Ray origins.
@@ -267,12 +270,13 @@ struct ClosestBatch<'a> {
     out_tri: &'a mut [u32],
 }
 
-impl Kernel for ClosestBatch<'_> {
+impl WideKernel for ClosestBatch<'_> {
     type Output = ();
 
     #[inline(always)]
-    fn run(self, level: Level) {
+    fn run<V: Wide>(self) {
         let ClosestBatch {
+            level,
             accel,
             origins,
             dirs,
@@ -284,12 +288,7 @@ impl Kernel for ClosestBatch<'_> {
         let wide = if origins.len() >= frustum::PAR_MIN && rayon::current_num_threads() > 1 {
             accel.closest_frusta_par(level, origins, dirs, t_max, out_t, out_tri, &mut scratch)
         } else {
-            match level {
-                Level::Avx512 => {
-                    accel.closest_frusta::<16>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
-                }
-                _ => accel.closest_frusta::<8>(origins, dirs, t_max, out_t, out_tri, &mut scratch),
-            }
+            accel.closest_frusta::<V>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
         };
         frustum::put_scratch(scratch);
         if !wide {
