@@ -52,7 +52,7 @@ use super::single::Entry;
 use super::visit::{Closest, Visitor};
 use crate::accel::kdtree::{MAX_DEPTH, TriHit};
 use crate::geometry::triangle::WatertightRay;
-use crate::simd::{Level, Wide, WideKernel, bits, dispatch_wide, max_ps, min_ps};
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide, max_ps, min_ps};
 use rayon::prelude::*;
 
 /// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
@@ -324,78 +324,48 @@ struct Rows<'a> {
     rows: &'a [u32],
 }
 
-/// Lanes `g·G .. g·G + G` of `a`.
+/// The single-ray step ([`super::interval::step`]) for the `V` lanes at the plane `split`, origins
+/// `o` on the node's axis: returns the normalised near `t1`, far `t0`, far `t1` and the bits of
+/// the lanes entering the near and the far child. All three sign cases are computed and
+/// blended; each value is the scalar step's, bit for bit.
 #[inline(always)]
-fn lanes<const G: usize, T>(a: &[T; WIDE], g: usize) -> &[T; G] {
-    a[g * G..g * G + G].try_into().expect("group in range")
+fn step_lanes<V: Wide>(split: f32, o: V, inv: V, slack: V, t0: V, t1: V) -> (V, V, V, u32, u32) {
+    let (zero, hi) = (V::splat(0.0), V::splat(HI));
+    let tp = V::splat(split).sub(o).mul(inv);
+    let tps = tp.add(slack);
+    let pos = V::gt(tp, zero);
+    let nonpos = V::le(tp, zero);
+    // tp > 0: near [t0, min(t1, tp + δ)], far [max(t0, tp - δ), t1].
+    let p_far_t0 = t0.max(tp.sub(slack));
+    let p_near_t1 = t1.min(tps);
+    let p_skip = V::lt(tps.mul(hi), t0);
+    let p_far = V::le(p_far_t0, t1.mul(hi));
+    // tp <= 0: near [t0, t1], far [t0, min(t1, tp + δ)] (the same `min(t1, tp + δ)`).
+    let q_far = V::le(t0, p_near_t1.mul(hi));
+    // Neither (a NaN `tp`: origin on the plane of a parallel ray): both, unchanged.
+    let skip = V::and(pos, p_skip);
+    let far = V::or(
+        V::and(pos, p_far),
+        V::and(not::<V>(pos), V::or(q_far, not::<V>(nonpos))),
+    );
+    let both = V::and(far, not::<V>(skip));
+    let near_t1 = V::select(V::and(both, pos), p_near_t1, t1);
+    let far_t1 = V::select(V::and(both, nonpos), p_near_t1, t1);
+    let far_t0 = V::select(pos, p_far_t0, t0);
+    (
+        near_t1,
+        far_t0,
+        far_t1,
+        !V::bits(skip),
+        V::bits(V::or(far, skip)),
+    )
 }
 
-/// Lanes `g·G .. g·G + G` of `a`, mutably.
+/// The lanes where `m` is false.
 #[inline(always)]
-fn lanes_mut<const G: usize, T>(a: &mut [T; WIDE], g: usize) -> &mut [T; G] {
-    (&mut a[g * G..g * G + G])
-        .try_into()
-        .expect("group in range")
-}
-
-/// The single-ray step ([`super::interval::step`]) for `G` lanes at the plane `split`, origins
-/// `o` on the node's axis: writes the normalised near `t1`, far `t0`, far `t1` and returns the bits
-/// of the lanes entering the near and the far child. All three sign cases are computed and
-/// blended, as the 4-lane step does; each value is the scalar step's, bit for bit.
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn step_lanes<const G: usize>(
-    split: f32,
-    o: &[f32; G],
-    inv: &[f32; G],
-    slack: &[f32; G],
-    t0: &[f32; G],
-    t1: &[f32; G],
-    near_t1: &mut [f32; G],
-    far_t0: &mut [f32; G],
-    far_t1: &mut [f32; G],
-) -> (u64, u64) {
-    let mut go_near = [false; G];
-    let mut go_far = [false; G];
-    for j in 0..G {
-        let (a0, a1, sl) = (t0[j], t1[j], slack[j]);
-        let tp = (split - o[j]) * inv[j];
-        let tps = tp + sl;
-        let pos = tp > 0.0;
-        let nonpos = tp <= 0.0;
-        // tp > 0: near [t0, min(t1, tp + δ)], far [max(t0, tp - δ), t1].
-        let p_far_t0 = max_ps(a0, tp - sl);
-        let p_near_t1 = min_ps(a1, tps);
-        let p_skip = (tps * HI) < a0;
-        let p_far = p_far_t0 <= a1 * HI;
-        // tp <= 0: near [t0, t1], far [t0, min(t1, tp + δ)].
-        let q_far_t1 = min_ps(a1, tps);
-        let q_far = a0 <= q_far_t1 * HI;
-        let c_near_t1 = if pos { p_near_t1 } else { a1 };
-        let c_far_t0 = if pos { p_far_t0 } else { a0 };
-        let c_far_t1 = if pos {
-            a1
-        } else if nonpos {
-            q_far_t1
-        } else {
-            a1
-        };
-        let skip = pos & p_skip;
-        let far = if pos {
-            p_far
-        } else if nonpos {
-            q_far
-        } else {
-            true
-        };
-        let both = far & !skip;
-        near_t1[j] = if both { c_near_t1 } else { a1 };
-        far_t0[j] = c_far_t0;
-        far_t1[j] = if both { c_far_t1 } else { a1 };
-        go_near[j] = !skip;
-        go_far[j] = far | skip;
-    }
-    (bits(&go_near), bits(&go_far))
+fn not<V: Wide>(m: V::Mask) -> V::Mask {
+    let one = V::splat(1.0);
+    V::eq(V::select(m, V::splat(0.0), one), one)
 }
 
 /// The smallest lane of `x` (`minps` semantics; the bounds below hold no NaN).
@@ -439,27 +409,25 @@ fn max_num<V: Wide>(a: V, b: V) -> V {
 /// Bits of the lanes `k` of `mask` with `t0[k] <= cull[k]` (a NaN `t0` is dropped, as the single
 /// ray drops it).
 #[inline(always)]
-fn not_culled<const G: usize>(t0: &[f32; WIDE], cull: &[f32; WIDE], mask: u64) -> u64 {
+fn not_culled<V: Wide>(t0: &[f32; WIDE], cull: &[f32; WIDE], mask: u64) -> u64 {
+    let w = V::LANES;
     let mut out = 0u64;
-    for g in 0..WIDE / G {
-        let gm = (mask >> (g * G)) & group_bits::<G>();
+    for g in 0..WIDE / w {
+        let at = g * w;
+        let gm = (mask >> at) & group_bits(w);
         if gm == 0 {
             continue;
         }
-        let (a, c) = (lanes::<G, f32>(t0, g), lanes::<G, f32>(cull, g));
-        let mut keep = [false; G];
-        for j in 0..G {
-            keep[j] = a[j] <= c[j];
-        }
-        out |= (bits(&keep) & gm) << (g * G);
+        let keep = V::le(V::load(&t0[at..]), V::load(&cull[at..]));
+        out |= (V::bits(keep) as u64 & gm) << at;
     }
     out
 }
 
-/// The low `G` bits.
+/// The low `w` bits.
 #[inline(always)]
-const fn group_bits<const G: usize>() -> u64 {
-    if G >= 64 { u64::MAX } else { (1u64 << G) - 1 }
+const fn group_bits(w: usize) -> u64 {
+    if w >= 64 { u64::MAX } else { (1u64 << w) - 1 }
 }
 
 /// What interval arithmetic tells about one inner node for a whole frustum.
@@ -1014,11 +982,7 @@ impl KdAccel {
         entry.lo = lowest(lo);
         entry.hi = highest(hi);
         let lanes = entry.mask;
-        if w == 16 {
-            self.walk_frustum::<16>(f, entry, stack, tmp);
-        } else {
-            self.walk_frustum::<8>(f, entry, stack, tmp);
-        }
+        self.walk_frustum::<V>(f, entry, stack, tmp);
         for (lane, &r) in rays.rows.iter().enumerate() {
             if lanes >> lane & 1 != 0 {
                 let at = if local { lane } else { r as usize };
@@ -1030,7 +994,7 @@ impl KdAccel {
     /// Front-to-back traversal of a frustum from `start` (see the module docs); each lane's
     /// answer is left in `f.best_t`, `f.best_tri`.
     #[inline(always)]
-    fn walk_frustum<const G: usize>(
+    fn walk_frustum<V: Wide>(
         &self,
         f: &mut Frustum,
         start: WideEntry,
@@ -1044,7 +1008,7 @@ impl KdAccel {
                 .get(i as usize)
                 .is_some_and(|c| c.is_leaf() && c.count() == 0)
         };
-        let groups = WIDE / G;
+        let w = V::LANES;
         let mut sp = 0usize;
         let mut e = start;
         loop {
@@ -1072,17 +1036,16 @@ impl KdAccel {
                     0
                 } else {
                     let mut nl = 0u64;
-                    for g in 0..groups {
-                        if (m >> (g * G)) & group_bits::<G>() == 0 {
+                    let s = V::splat(split);
+                    for g in 0..WIDE / w {
+                        let at = g * w;
+                        if (m >> at) & group_bits(w) == 0 {
                             continue;
                         }
-                        let o = lanes::<G, f32>(&f.org[axis], g);
-                        let inv = lanes::<G, f32>(&f.inv[axis], g);
-                        let mut b = [false; G];
-                        for j in 0..G {
-                            b[j] = o[j] < split || (o[j] == split && inv[j] < 0.0);
-                        }
-                        nl |= bits(&b) << (g * G);
+                        let o = V::load(&f.org[axis][at..]);
+                        let inv = V::load(&f.inv[axis][at..]);
+                        let on = V::and(V::eq(o, s), V::lt(inv, V::splat(0.0)));
+                        nl |= (V::bits(V::or(V::lt(o, s), on)) as u64) << at;
                     }
                     nl & m
                 };
@@ -1134,23 +1097,24 @@ impl KdAccel {
                 };
                 let (mut go_near, mut go_far) = (0u64, 0u64);
                 let [near_t1, far_t0, far_t1] = tmp;
-                for g in 0..groups {
-                    if (m >> (g * G)) & group_bits::<G>() == 0 {
+                for g in 0..WIDE / w {
+                    let at = g * w;
+                    if (m >> at) & group_bits(w) == 0 {
                         continue;
                     }
-                    let (gn, gf) = step_lanes::<G>(
+                    let (nt1, ft0, ft1, gn, gf) = step_lanes::<V>(
                         split,
-                        lanes::<G, f32>(&f.org[axis], g),
-                        lanes::<G, f32>(&f.inv[axis], g),
-                        lanes::<G, f32>(&f.slack[axis], g),
-                        lanes::<G, f32>(&e.t0, g),
-                        lanes::<G, f32>(&e.t1, g),
-                        lanes_mut::<G, f32>(near_t1, g),
-                        lanes_mut::<G, f32>(far_t0, g),
-                        lanes_mut::<G, f32>(far_t1, g),
+                        V::load(&f.org[axis][at..]),
+                        V::load(&f.inv[axis][at..]),
+                        V::load(&f.slack[axis][at..]),
+                        V::load(&e.t0[at..]),
+                        V::load(&e.t1[at..]),
                     );
-                    go_near |= gn << (g * G);
-                    go_far |= gf << (g * G);
+                    nt1.store(&mut near_t1[at..]);
+                    ft0.store(&mut far_t0[at..]);
+                    ft1.store(&mut far_t1[at..]);
+                    go_near |= (gn as u64 & group_bits(w)) << at;
+                    go_far |= (gf as u64) << at;
                 }
                 go_near &= m;
                 go_far &= m;
@@ -1247,7 +1211,7 @@ impl KdAccel {
                 }
             };
             if let Some(n) = leaf {
-                self.leaf_frustum::<G>(f, n.offset() as usize, n.count() as usize, e.mask);
+                self.leaf_frustum::<V>(f, n.offset() as usize, n.count() as usize, e.mask);
             }
             // Pop the next entry with a lane that can still hold a closer (or tying) hit.
             loop {
@@ -1256,7 +1220,7 @@ impl KdAccel {
                 }
                 sp -= 1;
                 let top = &stack[sp];
-                let m = not_culled::<G>(&top.t0, &f.cull, top.mask);
+                let m = not_culled::<V>(&top.t0, &f.cull, top.mask);
                 if m != 0 {
                     e = *top;
                     e.mask = m;
@@ -1301,7 +1265,7 @@ impl KdAccel {
     /// Tests the leaf entries `start..start + count` against the lanes of `mask`, triangle by
     /// triangle in leaf order (as each single ray does), updating each lane's best hit.
     #[inline(always)]
-    fn leaf_frustum<const G: usize>(&self, f: &mut Frustum, start: usize, count: usize, mask: u64) {
+    fn leaf_frustum<V: Wide>(&self, f: &mut Frustum, start: usize, count: usize, mask: u64) {
         let (Some(tris), Some(ids)) = (
             self.tris.get(start..start + count),
             self.tree.tri_indices.get(start..start + count),
@@ -1312,14 +1276,16 @@ impl KdAccel {
         for (p, &id) in tris.iter().zip(ids) {
             let perm = |v: &[f32; 3]| [v[kx], v[ky], v[kz]];
             let (a, b, c) = (perm(&p[0]), perm(&p[1]), perm(&p[2]));
-            for g in 0..WIDE / G {
-                let gm = (mask >> (g * G)) & group_bits::<G>();
+            let w = V::LANES;
+            for g in 0..WIDE / w {
+                let at = g * w;
+                let gm = ((mask >> at) & group_bits(w)) as u32;
                 if gm == 0 {
                     continue;
                 }
-                let edge = hit_lanes::<G>(f, g, gm, &a, &b, &c, id) & gm;
+                let edge = hit_lanes::<V>(f, at, gm, &a, &b, &c, id) & gm;
                 if edge != 0 {
-                    self.edge_lanes(f, g * G, edge, p, id);
+                    self.edge_lanes(f, at, edge as u64, p, id);
                 }
             }
         }
@@ -1353,85 +1319,92 @@ impl KdAccel {
     }
 }
 
-/// One triangle (vertices `a`, `b`, `c` in the permuted axes) against the `G` lanes of group
-/// `g` whose bits are in `live`: the watertight test's operations in the scalar order, each hit taken as `Closest::accept` would. Returns the bits
-/// of the lanes on an edge (`u`, `v` or `w` zero), which the caller retests.
+/// One triangle (vertices `a`, `b`, `c` in the permuted axes) against the `V` lanes from `at`
+/// whose bits are in `live`: the watertight test's operations in the scalar order, each hit taken
+/// as `Closest::accept` would. Returns the bits of the lanes on an edge (`u`, `v` or `w` zero),
+/// which the caller retests.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn hit_lanes<const G: usize>(
+fn hit_lanes<V: Wide>(
     f: &mut Frustum,
-    g: usize,
-    live: u64,
+    at: usize,
+    live: u32,
     a: &[f32; 3],
     b: &[f32; 3],
     c: &[f32; 3],
     id: u32,
-) -> u64 {
+) -> u32 {
     let [kx, ky, kz] = f.k;
-    let ox = *lanes::<G, f32>(&f.org[kx], g);
-    let oy = *lanes::<G, f32>(&f.org[ky], g);
-    let oz = *lanes::<G, f32>(&f.org[kz], g);
-    let sx = *lanes::<G, f32>(&f.sx, g);
-    let sy = *lanes::<G, f32>(&f.sy, g);
-    let sz = *lanes::<G, f32>(&f.sz, g);
+    let ox = V::load(&f.org[kx][at..]);
+    let oy = V::load(&f.org[ky][at..]);
+    let oz = V::load(&f.org[kz][at..]);
+    let sx = V::load(&f.sx[at..]);
+    let sy = V::load(&f.sy[at..]);
+    let sz = V::load(&f.sz[at..]);
+    let zero = V::splat(0.0);
     // The 2D edge functions first; a group in which no live lane is inside the triangle or on
     // an edge (most groups at most triangles) skips the distance and the hit updates.
-    let mut u = [0.0f32; G];
-    let mut v = [0.0f32; G];
-    let mut w = [0.0f32; G];
-    let mut maybe = [false; G];
-    for j in 0..G {
-        let rel = |p: &[f32; 3]| [p[0] - ox[j], p[1] - oy[j], p[2] - oz[j]];
-        let (a, b, c) = (rel(a), rel(b), rel(c));
-        let ax = a[0] - sx[j] * a[2];
-        let ay = a[1] - sy[j] * a[2];
-        let bx = b[0] - sx[j] * b[2];
-        let by = b[1] - sy[j] * b[2];
-        let cx = c[0] - sx[j] * c[2];
-        let cy = c[1] - sy[j] * c[2];
-        u[j] = cx * by - cy * bx;
-        v[j] = ax * cy - ay * cx;
-        w[j] = bx * ay - by * ax;
-        let on_edge = u[j] == 0.0 || v[j] == 0.0 || w[j] == 0.0;
-        let neg = u[j] < 0.0 || v[j] < 0.0 || w[j] < 0.0;
-        let pos = u[j] > 0.0 || v[j] > 0.0 || w[j] > 0.0;
-        maybe[j] = on_edge | !(neg & pos);
-    }
-    let maybe = bits(&maybe) & live;
+    let (a0, a1, a2) = (
+        V::splat(a[0]).sub(ox),
+        V::splat(a[1]).sub(oy),
+        V::splat(a[2]).sub(oz),
+    );
+    let (b0, b1, b2) = (
+        V::splat(b[0]).sub(ox),
+        V::splat(b[1]).sub(oy),
+        V::splat(b[2]).sub(oz),
+    );
+    let (c0, c1, c2) = (
+        V::splat(c[0]).sub(ox),
+        V::splat(c[1]).sub(oy),
+        V::splat(c[2]).sub(oz),
+    );
+    let ax = a0.sub(sx.mul(a2));
+    let ay = a1.sub(sy.mul(a2));
+    let bx = b0.sub(sx.mul(b2));
+    let by = b1.sub(sy.mul(b2));
+    let cx = c0.sub(sx.mul(c2));
+    let cy = c1.sub(sy.mul(c2));
+    let u = cx.mul(by).sub(cy.mul(bx));
+    let v = ax.mul(cy).sub(ay.mul(cx));
+    let w = bx.mul(ay).sub(by.mul(ax));
+    let on_edge = V::bits(V::or(V::or(V::eq(u, zero), V::eq(v, zero)), V::eq(w, zero)));
+    let neg = V::or(V::or(V::lt(u, zero), V::lt(v, zero)), V::lt(w, zero));
+    let pos = V::or(V::or(V::gt(u, zero), V::gt(v, zero)), V::gt(w, zero));
+    let mixed = V::bits(V::and(neg, pos));
+    let maybe = (on_edge | !mixed) & live;
     if maybe == 0 {
         return 0;
     }
-    let limit = lanes_mut::<G, f32>(&mut f.limit, g);
-    let mut edge = [false; G];
-    let mut best_t = *lanes::<G, f32>(&f.best_t, g);
-    let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
-    let mut cull = *lanes::<G, f32>(&f.cull, g);
-    for j in 0..G {
-        let (u, v, w) = (u[j], v[j], w[j]);
-        let on_edge = u == 0.0 || v == 0.0 || w == 0.0;
-        let neg = u < 0.0 || v < 0.0 || w < 0.0;
-        let pos = u > 0.0 || v > 0.0 || w > 0.0;
-        let det = u + v + w;
-        let az = sz[j] * (a[2] - oz[j]);
-        let bz = sz[j] * (b[2] - oz[j]);
-        let cz = sz[j] * (c[2] - oz[j]);
-        let t = (u * az + v * bz + w * cz) / det;
-        let live_j = maybe >> j & 1 != 0;
-        let hit = live_j & !on_edge & !(neg & pos) & (det != 0.0) & (t > 0.0) & (t < limit[j]);
-        let better = hit & ((t < best_t[j]) | (id < best_tri[j]));
-        best_t[j] = if better { t } else { best_t[j] };
-        best_tri[j] = if better { id } else { best_tri[j] };
-        // `t` is positive and finite here: its successor is the next bit pattern.
-        limit[j] = if better {
-            f32::from_bits(t.to_bits() + 1)
-        } else {
-            limit[j]
-        };
-        cull[j] = if better { t * HI } else { cull[j] };
-        edge[j] = on_edge & live_j;
+    let inside = maybe & !on_edge & !mixed;
+    if inside != 0 {
+        let det = u.add(v).add(w);
+        let az = sz.mul(a2);
+        let bz = sz.mul(b2);
+        let cz = sz.mul(c2);
+        let t = u.mul(az).add(v.mul(bz)).add(w.mul(cz)).div(det);
+        let limit = V::load(&f.limit[at..]);
+        let ok = V::and(V::gt(t, zero), V::lt(t, limit));
+        let hit = inside & !V::bits(V::eq(det, zero)) & V::bits(ok);
+        if hit != 0 {
+            // A hit is better when it is closer, or (at equal `t`) of a lower index.
+            let closer = V::bits(V::lt(t, V::load(&f.best_t[at..])));
+            let mut ts = [0.0f32; 16];
+            t.store(&mut ts);
+            let mut m = hit;
+            while m != 0 {
+                let j = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let k = at + j;
+                if closer >> j & 1 != 0 || id < f.best_tri[k] {
+                    let t = ts[j];
+                    (f.best_t[k], f.best_tri[k]) = (t, id);
+                    // `t` is positive and finite here: its successor is the next bit pattern.
+                    f.limit[k] = f32::from_bits(t.to_bits() + 1);
+                    f.cull[k] = t * HI;
+                }
+            }
+        }
     }
-    *lanes_mut::<G, f32>(&mut f.best_t, g) = best_t;
-    *lanes_mut::<G, u32>(&mut f.best_tri, g) = best_tri;
-    *lanes_mut::<G, f32>(&mut f.cull, g) = cull;
-    bits(&edge)
+    on_edge & maybe
 }
