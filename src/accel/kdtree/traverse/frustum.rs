@@ -743,9 +743,9 @@ impl KdAccel {
         let n = dirs.len();
         let key = &mut scratch.key;
         let shear = &mut scratch.shear;
-        key.clear();
+        // Every entry of `key`, `shear` and `order` is written below: resized, not cleared
+        // (a batch of the usual size reuses them as they are).
         key.resize(n, 0);
-        shear.clear();
         shear.resize(n, [0.0; 2]);
         // The permutation exactly as `WatertightRay::new` chooses it, and the shear (up to
         // rounding: it only places the ray in a tile), branch-free so that it vectorises.
@@ -818,7 +818,6 @@ impl KdAccel {
             hist[c] += hist[c - 1];
         }
         let order = &mut scratch.order;
-        order.clear();
         order.resize(n, 0);
         for (i, k) in key.iter().enumerate() {
             let cell = (k & 0xff_ffff) as usize;
