@@ -10,9 +10,21 @@
 //!   written once, generic over `f32` and 4 SIMD lanes;
 //! - `visit`: the closest and occluded modes (leaf visit, culling, answer);
 //! - `single`: the single-ray loop; `packet`: the 4-ray packet loop and the batch driver;
-//!   `frustum`: 64-ray frusta for closest-hit batches;
 //!   `hit4`: one triangle against a packet's 4 rays;
-//! - [`crate::simd`]: the SSE2 lanes (the crate's one `unsafe` module).
+//! - `frustum`: 64-ray frusta for closest-hit batches; `bundle`: light-rooted shadow bundles
+//!   for occluded batches (both over [`crate::simd`]'s `Wide` lanes: 16 with AVX-512, 8
+//!   otherwise);
+//! - [`crate::simd`]: the SIMD lanes and dispatch (the crate's one `unsafe` module).
+//!
+//! **Which loop a query takes** (every path gives the single-ray answer, bit for bit):
+//!
+//! | query | rays | loop |
+//! |---|---|---|
+//! | [`KdAccel::intersect_closest`], [`KdAccel::intersect_occluded`] | one | `single` |
+//! | [`KdAccel::intersect_closest_batch`] | ≥ 128, origins within `frustum::MAX_SPREAD` (camera rays, mirror reflections) | `frustum` per 64-ray screen tile; a rejected direction, and a frustum's last ≤ `SOLO` live lanes, `single` |
+//! | [`KdAccel::intersect_closest_batch`] | fewer, or origins spread | `packet` per 4 consecutive rays of equal direction signs, else `single` |
+//! | [`KdAccel::intersect_occluded_batch`] | ≥ `MIN_BUNDLED` ending at up to `MAX_APEXES` shared points (shadow rays to point lights) | `bundle`; rays ending elsewhere `single` |
+//! | [`KdAccel::intersect_occluded_batch`] | fewer | `packet`, else `single` |
 //!
 //! Traversal is front-to-back and stack-based (fixed array, no allocation per ray), generic over
 //! the query mode and the triangle test
