@@ -8,8 +8,8 @@
 //!   these machines change CPU between sessions (an Intel Xeon with AVX-512, an AMD EPYC with
 //!   AVX2 and AVX-512). The portable path (SSE2 on `x86_64`) is always there.
 //! - **Explicit lanes** (`F32x4`, `M32x4`): four `f32` lanes with exactly the semantics of
-//!   SSE2 instructions, for the kD tree's packet traversal (`x4`); lane masks packed into bits
-//!   for its wide frusta (`x8`).
+//!   SSE2 instructions, for the kD tree's packet traversal (`x4`); 8 or 16 lanes behind one
+//!   trait ([`Wide`], `wide`) for its frusta and light-rooted bundles.
 //!
 //! Determinism: every path performs the same IEEE operations in the same order on each lane —
 //! Rust never contracts `a * b + c` into a fused multiply-add, and enabling the `fma` feature
@@ -19,11 +19,9 @@
 
 mod wide;
 mod x4;
-mod x8;
 
 pub(crate) use wide::{Wide, WideKernel, dispatch_wide};
 pub(crate) use x4::{F32x4, M32x4, max_ps, min_ps};
-pub(crate) use x8::bits;
 
 use std::sync::OnceLock;
 

@@ -830,6 +830,12 @@ impl KdAccel {
         count: &mut C,
     ) -> u32 {
         let nodes = &self.tree.nodes[..];
+        // Whether node `i` is a leaf without triangles.
+        let empty = |i: u32| {
+            nodes
+                .get(i as usize)
+                .is_some_and(|c| c.is_leaf() && c.count() == 0)
+        };
         let mut sp = 0usize;
         let mut alive = start.mask;
         let mut hit = 0u32;
@@ -886,12 +892,19 @@ impl KdAccel {
                     (above, below)
                 };
                 if near.mask != 0 && far.mask != 0 {
-                    // (Never full: one entry per level of a tree at most `MAX_DEPTH` deep.)
-                    if sp < stack.len() {
-                        stack[sp] = far;
-                        sp += 1;
+                    // Where both children are entered, one that is an empty leaf (it holds
+                    // nothing to test) is neither entered nor pushed: no lane's answer changes,
+                    // one push and pop fewer.
+                    if empty(near.node) {
+                        e = far;
+                    } else {
+                        // (Never full: one entry per level of a tree at most `MAX_DEPTH` deep.)
+                        if sp < stack.len() && !empty(far.node) {
+                            stack[sp] = far;
+                            sp += 1;
+                        }
+                        e = near;
                     }
-                    e = near;
                 } else if near.mask != 0 {
                     e = near;
                 } else if far.mask != 0 {

@@ -52,7 +52,7 @@ use super::single::Entry;
 use super::visit::{Closest, Visitor};
 use crate::accel::kdtree::{MAX_DEPTH, TriHit};
 use crate::geometry::triangle::WatertightRay;
-use crate::simd::{Kernel, Level, bits, max_ps, min_ps};
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide, max_ps, min_ps};
 use rayon::prelude::*;
 
 /// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
@@ -263,11 +263,11 @@ struct Runs<'a> {
     out_tri: &'a mut [u32],
 }
 
-impl Kernel for Runs<'_> {
+impl WideKernel for Runs<'_> {
     type Output = ();
 
     #[inline(always)]
-    fn run(self, level: Level) {
+    fn run<V: Wide>(self) {
         let Runs {
             accel,
             origins,
@@ -304,10 +304,7 @@ impl Kernel for Runs<'_> {
                 t_max,
                 rows,
             };
-            match level {
-                Level::Avx512 => accel.frustum::<16>(&rays, t, tri, true, f, stack, tmp),
-                _ => accel.frustum::<8>(&rays, t, tri, true, f, stack, tmp),
-            }
+            accel.frustum::<V>(&rays, t, tri, true, f, stack, tmp);
         }
         put_scratch(scratch);
     }
@@ -327,132 +324,110 @@ struct Rows<'a> {
     rows: &'a [u32],
 }
 
-/// Lanes `g·G .. g·G + G` of `a`.
+/// The single-ray step ([`super::interval::step`]) for the `V` lanes at the plane `split`, origins
+/// `o` on the node's axis: returns the normalised near `t1`, far `t0`, far `t1` and the bits of
+/// the lanes entering the near and the far child. All three sign cases are computed and
+/// blended; each value is the scalar step's, bit for bit.
 #[inline(always)]
-fn lanes<const G: usize, T>(a: &[T; WIDE], g: usize) -> &[T; G] {
-    a[g * G..g * G + G].try_into().expect("group in range")
+fn step_lanes<V: Wide>(split: f32, o: V, inv: V, slack: V, t0: V, t1: V) -> (V, V, V, u32, u32) {
+    let (zero, hi) = (V::splat(0.0), V::splat(HI));
+    let tp = V::splat(split).sub(o).mul(inv);
+    let tps = tp.add(slack);
+    let pos = V::gt(tp, zero);
+    let nonpos = V::le(tp, zero);
+    // tp > 0: near [t0, min(t1, tp + δ)], far [max(t0, tp - δ), t1].
+    let p_far_t0 = t0.max(tp.sub(slack));
+    let p_near_t1 = t1.min(tps);
+    let p_skip = V::lt(tps.mul(hi), t0);
+    let p_far = V::le(p_far_t0, t1.mul(hi));
+    // tp <= 0: near [t0, t1], far [t0, min(t1, tp + δ)] (the same `min(t1, tp + δ)`).
+    let q_far = V::le(t0, p_near_t1.mul(hi));
+    // Neither (a NaN `tp`: origin on the plane of a parallel ray): both, unchanged.
+    let skip = V::and(pos, p_skip);
+    let far = V::or(
+        V::and(pos, p_far),
+        V::and(not::<V>(pos), V::or(q_far, not::<V>(nonpos))),
+    );
+    let both = V::and(far, not::<V>(skip));
+    let near_t1 = V::select(V::and(both, pos), p_near_t1, t1);
+    let far_t1 = V::select(V::and(both, nonpos), p_near_t1, t1);
+    let far_t0 = V::select(pos, p_far_t0, t0);
+    (
+        near_t1,
+        far_t0,
+        far_t1,
+        !V::bits(skip),
+        V::bits(V::or(far, skip)),
+    )
 }
 
-/// Lanes `g·G .. g·G + G` of `a`, mutably.
+/// The lanes where `m` is false.
 #[inline(always)]
-fn lanes_mut<const G: usize, T>(a: &mut [T; WIDE], g: usize) -> &mut [T; G] {
-    (&mut a[g * G..g * G + G])
-        .try_into()
-        .expect("group in range")
+fn not<V: Wide>(m: V::Mask) -> V::Mask {
+    let one = V::splat(1.0);
+    V::eq(V::select(m, V::splat(0.0), one), one)
 }
 
-/// The single-ray step ([`super::interval::step`]) for `G` lanes at the plane `split`, origins
-/// `o` on the node's axis: writes the normalised near `t1`, far `t0`, far `t1` and returns the bits
-/// of the lanes entering the near and the far child. All three sign cases are computed and
-/// blended, as the 4-lane step does; each value is the scalar step's, bit for bit.
+/// The smallest lane of `x` (`minps` semantics; the bounds below hold no NaN).
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn step_lanes<const G: usize>(
-    split: f32,
-    o: &[f32; G],
-    inv: &[f32; G],
-    slack: &[f32; G],
-    t0: &[f32; G],
-    t1: &[f32; G],
-    near_t1: &mut [f32; G],
-    far_t0: &mut [f32; G],
-    far_t1: &mut [f32; G],
-) -> (u64, u64) {
-    let mut go_near = [false; G];
-    let mut go_far = [false; G];
-    for j in 0..G {
-        let (a0, a1, sl) = (t0[j], t1[j], slack[j]);
-        let tp = (split - o[j]) * inv[j];
-        let tps = tp + sl;
-        let pos = tp > 0.0;
-        let nonpos = tp <= 0.0;
-        // tp > 0: near [t0, min(t1, tp + δ)], far [max(t0, tp - δ), t1].
-        let p_far_t0 = max_ps(a0, tp - sl);
-        let p_near_t1 = min_ps(a1, tps);
-        let p_skip = (tps * HI) < a0;
-        let p_far = p_far_t0 <= a1 * HI;
-        // tp <= 0: near [t0, t1], far [t0, min(t1, tp + δ)].
-        let q_far_t1 = min_ps(a1, tps);
-        let q_far = a0 <= q_far_t1 * HI;
-        let c_near_t1 = if pos { p_near_t1 } else { a1 };
-        let c_far_t0 = if pos { p_far_t0 } else { a0 };
-        let c_far_t1 = if pos {
-            a1
-        } else if nonpos {
-            q_far_t1
-        } else {
-            a1
-        };
-        let skip = pos & p_skip;
-        let far = if pos {
-            p_far
-        } else if nonpos {
-            q_far
-        } else {
-            true
-        };
-        let both = far & !skip;
-        near_t1[j] = if both { c_near_t1 } else { a1 };
-        far_t0[j] = c_far_t0;
-        far_t1[j] = if both { c_far_t1 } else { a1 };
-        go_near[j] = !skip;
-        go_far[j] = far | skip;
-    }
-    (bits(&go_near), bits(&go_far))
+fn lowest<V: Wide>(x: V) -> f32 {
+    let mut a = [0.0f32; 16];
+    x.store(&mut a);
+    a[..V::LANES]
+        .iter()
+        .fold(f32::INFINITY, |m, &v| min_ps(v, m))
 }
 
-/// The smallest of `a` (`minps` semantics, over every lane: lanes outside an entry's mask hold
-/// either the neutral `+∞` or a value of the node's parent step, so the result is a lower bound
-/// of the live lanes', which is all interval arithmetic needs).
+/// The largest lane of `x` (see [`lowest`]).
 #[inline(always)]
-fn min_all<const G: usize>(a: &[f32; WIDE]) -> f32 {
-    let mut m = [f32::INFINITY; G];
-    for g in 0..WIDE / G {
-        let x = lanes::<G, f32>(a, g);
-        for j in 0..G {
-            m[j] = min_ps(x[j], m[j]);
-        }
-    }
-    m.into_iter().fold(f32::INFINITY, min_ps)
+fn highest<V: Wide>(x: V) -> f32 {
+    let mut a = [0.0f32; 16];
+    x.store(&mut a);
+    a[..V::LANES]
+        .iter()
+        .fold(f32::NEG_INFINITY, |m, &v| max_ps(v, m))
 }
 
-/// The largest of `a` (see [`min_all`]).
+/// Lanes where `x` is finite (`x − x` is zero exactly there).
 #[inline(always)]
-fn max_all<const G: usize>(a: &[f32; WIDE]) -> f32 {
-    let mut m = [f32::NEG_INFINITY; G];
-    for g in 0..WIDE / G {
-        let x = lanes::<G, f32>(a, g);
-        for j in 0..G {
-            m[j] = max_ps(x[j], m[j]);
-        }
-    }
-    m.into_iter().fold(f32::NEG_INFINITY, max_ps)
+fn finite<V: Wide>(x: V) -> V::Mask {
+    V::eq(x.sub(x), V::splat(0.0))
+}
+
+/// `f32::min` per lane: the other operand where one is NaN, else the smaller.
+#[inline(always)]
+fn min_num<V: Wide>(a: V, b: V) -> V {
+    V::select(V::eq(a, a), b.min(a), b)
+}
+
+/// `f32::max` per lane: the other operand where one is NaN, else the larger.
+#[inline(always)]
+fn max_num<V: Wide>(a: V, b: V) -> V {
+    V::select(V::eq(a, a), b.max(a), b)
 }
 
 /// Bits of the lanes `k` of `mask` with `t0[k] <= cull[k]` (a NaN `t0` is dropped, as the single
 /// ray drops it).
 #[inline(always)]
-fn not_culled<const G: usize>(t0: &[f32; WIDE], cull: &[f32; WIDE], mask: u64) -> u64 {
+fn not_culled<V: Wide>(t0: &[f32; WIDE], cull: &[f32; WIDE], mask: u64) -> u64 {
+    let w = V::LANES;
     let mut out = 0u64;
-    for g in 0..WIDE / G {
-        let gm = (mask >> (g * G)) & group_bits::<G>();
+    for g in 0..WIDE / w {
+        let at = g * w;
+        let gm = (mask >> at) & group_bits(w);
         if gm == 0 {
             continue;
         }
-        let (a, c) = (lanes::<G, f32>(t0, g), lanes::<G, f32>(cull, g));
-        let mut keep = [false; G];
-        for j in 0..G {
-            keep[j] = a[j] <= c[j];
-        }
-        out |= (bits(&keep) & gm) << (g * G);
+        let keep = V::le(V::load(&t0[at..]), V::load(&cull[at..]));
+        out |= (V::bits(keep) as u64 & gm) << at;
     }
     out
 }
 
-/// The low `G` bits.
+/// The low `w` bits.
 #[inline(always)]
-const fn group_bits<const G: usize>() -> u64 {
-    if G >= 64 { u64::MAX } else { (1u64 << G) - 1 }
+const fn group_bits(w: usize) -> u64 {
+    if w >= 64 { u64::MAX } else { (1u64 << w) - 1 }
 }
 
 /// What interval arithmetic tells about one inner node for a whole frustum.
@@ -535,7 +510,7 @@ impl KdAccel {
     /// Returns false, having written nothing, when the batch is too small to be worth
     /// regrouping or its rays come from many origins too far apart ([`KdAccel::too_spread`]).
     #[inline(always)]
-    pub(super) fn closest_frusta<const G: usize>(
+    pub(super) fn closest_frusta<V: Wide>(
         &self,
         origins: &[Vec3],
         dirs: &[Vec3],
@@ -592,7 +567,7 @@ impl KdAccel {
                     t_max,
                     rows,
                 };
-                self.frustum::<G>(&rays, out_t, out_tri, false, f, stack, tmp);
+                self.frustum::<V>(&rays, out_t, out_tri, false, f, stack, tmp);
             }
             i = end;
         }
@@ -676,7 +651,7 @@ impl KdAccel {
                 out_t,
                 out_tri,
             };
-            crate::simd::dispatch(level, k)
+            dispatch_wide(level, k)
         };
         // Rays from many origins: the first two frusta decide, as in `closest_frusta`.
         let rows_of = runs
@@ -768,9 +743,9 @@ impl KdAccel {
         let n = dirs.len();
         let key = &mut scratch.key;
         let shear = &mut scratch.shear;
-        key.clear();
+        // Every entry of `key`, `shear` and `order` is written below: resized, not cleared
+        // (a batch of the usual size reuses them as they are).
         key.resize(n, 0);
-        shear.clear();
         shear.resize(n, [0.0; 2]);
         // The permutation exactly as `WatertightRay::new` chooses it, and the shear (up to
         // rounding: it only places the ray in a tile), branch-free so that it vectorises.
@@ -843,7 +818,6 @@ impl KdAccel {
             hist[c] += hist[c - 1];
         }
         let order = &mut scratch.order;
-        order.clear();
         order.resize(n, 0);
         for (i, k) in key.iter().enumerate() {
             let cell = (k & 0xff_ffff) as usize;
@@ -852,12 +826,14 @@ impl KdAccel {
         }
     }
 
-    /// Traces the rays `rays.rows` (at most [`WIDE`], one permutation) as one frustum. The
-    /// per-lane setup is `Ray::new` and `Ray::clip` written over the lanes (same operations).
-    /// Answers go to `out_*[row]`, or with `local` to `out_*[lane]` (tracing order).
+    /// Traces the rays `rays.rows` (at most [`WIDE`], one permutation) as one frustum, `V` lanes
+    /// per SIMD step. The per-lane setup is `Ray::new` and `Ray::clip` written over the lanes
+    /// (the same operations; `f32::min`/`max`, which ignore a NaN operand, as [`min_num`] and
+    /// [`max_num`]). Answers go to `out_*[row]`, or with `local` to `out_*[lane]` (tracing
+    /// order).
     #[inline(always)]
     #[allow(clippy::too_many_arguments)]
-    fn frustum<const G: usize>(
+    fn frustum<V: Wide>(
         &self,
         rays: &Rows<'_>,
         out_t: &mut [f32],
@@ -869,7 +845,6 @@ impl KdAccel {
     ) {
         let mut entry = WideEntry::default();
         let mut d = [[1.0f32; WIDE]; 3];
-        let mut live = [false; WIDE];
         for (lane, &r) in rays.rows.iter().enumerate() {
             let r = r as usize;
             let dir = rays.dirs[r];
@@ -892,49 +867,102 @@ impl KdAccel {
             [kx, ky, kz]
         };
         let [kx, ky, _] = axes;
-        let (lo, hi) = (self.root.0, self.root.1);
-        for k in 0..WIDE {
-            let o = [f.org[0][k], f.org[1][k], f.org[2][k]];
-            let origin_ok = o.iter().all(|x| x.is_finite());
+        f.best_t = [f32::INFINITY; WIDE];
+        f.best_tri = [u32::MAX; WIDE];
+        f.cull = [f32::INFINITY; WIDE];
+        f.limit = f.t_max;
+        let w = V::LANES;
+        let (zero, inf, ninf) = (
+            V::splat(0.0),
+            V::splat(f32::INFINITY),
+            V::splat(f32::NEG_INFINITY),
+        );
+        // (No closures over lanes: a closure is not compiled with the kernel's target features.)
+        let (r0, r1) = (self.root.0, self.root.1);
+        let root = [
+            [V::splat(r0[0]), V::splat(r0[1]), V::splat(r0[2])],
+            [V::splat(r1[0]), V::splat(r1[1]), V::splat(r1[2])],
+        ];
+        // Interval-arithmetic bounds over the live lanes (the neutral value elsewhere).
+        let mut org_lo = [inf; 3];
+        let mut org_hi = [ninf; 3];
+        let mut inv_lo = [inf; 3];
+        let mut inv_hi = [ninf; 3];
+        let mut slack_hi = [ninf; 3];
+        let (mut lo, mut hi) = (inf, ninf);
+        let mut mask = 0u64;
+        for g in 0..WIDE / w {
+            let at = g * w;
+            let o = [
+                V::load(&f.org[0][at..]),
+                V::load(&f.org[1][at..]),
+                V::load(&f.org[2][at..]),
+            ];
+            let dv = [
+                V::load(&d[0][at..]),
+                V::load(&d[1][at..]),
+                V::load(&d[2][at..]),
+            ];
+            let tm = V::load(&f.t_max[at..]);
+            let origin_ok = V::and(V::and(finite(o[0]), finite(o[1])), finite(o[2]));
             // `Ray::new`'s `δ`: the L∞ distance to the farthest root corner.
-            let reach = (0..3)
-                .map(|a| (lo[a] - o[a]).abs().max((hi[a] - o[a]).abs()))
-                .fold(f32::NEG_INFINITY, f32::max);
-            let delta = DELTA * reach;
-            let tm = f.t_max[k];
-            // `WatertightRay::new`'s shear and its test for a direction it rejects.
-            let dz = d[kz][k];
-            let sz = 1.0 / dz;
-            let sx = d[kx][k] / dz;
-            let sy = d[ky][k] / dz;
-            let test_ok = sz.is_finite() && sx.is_finite() && sy.is_finite() && origin_ok;
-            (f.sx[k], f.sy[k], f.sz[k]) = (sx, sy, sz);
-            f.best_t[k] = f32::INFINITY;
-            f.best_tri[k] = u32::MAX;
-            f.limit[k] = tm;
-            f.cull[k] = f32::INFINITY;
-            let mut t0 = 0.0f32;
-            let mut t1 = tm;
+            let mut reach = ninf;
             for a in 0..3 {
-                let inv = 1.0 / d[a][k];
-                let slack = (inv.abs() * delta).min(f32::MAX);
-                f.inv[a][k] = inv;
-                f.slack[a][k] = slack;
-                let ta = (lo[a] - o[a]) * inv;
-                let tb = (hi[a] - o[a]) * inv;
-                let (near, far) = (ta.min(tb), ta.max(tb));
-                t0 = t0.max(near - slack);
-                t1 = t1.min(far + slack);
+                let r = root[0][a].sub(o[a]).abs().max(root[1][a].sub(o[a]).abs());
+                reach = reach.max(r);
+            }
+            let delta = V::splat(DELTA).mul(reach);
+            // `WatertightRay::new`'s shear and its test for a direction it rejects.
+            let dz = dv[kz];
+            let sz = V::splat(1.0).div(dz);
+            let sx = dv[kx].div(dz);
+            let sy = dv[ky].div(dz);
+            let test_ok = V::and(
+                V::and(V::and(finite(sz), finite(sx)), finite(sy)),
+                origin_ok,
+            );
+            sx.store(&mut f.sx[at..]);
+            sy.store(&mut f.sy[at..]);
+            sz.store(&mut f.sz[at..]);
+            let mut t0 = zero;
+            let mut t1 = tm;
+            let mut inv = [zero; 3];
+            let mut slack = [zero; 3];
+            for a in 0..3 {
+                inv[a] = V::splat(1.0).div(dv[a]);
+                slack[a] = inv[a].abs().mul(delta).min(V::splat(f32::MAX));
+                inv[a].store(&mut f.inv[a][at..]);
+                slack[a].store(&mut f.slack[a][at..]);
+                let ta = root[0][a].sub(o[a]).mul(inv[a]);
+                let tb = root[1][a].sub(o[a]).mul(inv[a]);
+                let (near, far) = (min_num(ta, tb), max_num(ta, tb));
+                t0 = max_num(t0, near.sub(slack[a]));
+                t1 = min_num(t1, far.add(slack[a]));
             }
             // A bad `t_max` (NaN, `<= 0`) or a ray missing the root box: no hit.
-            live[k] = test_ok && tm > 0.0 && t0 <= t1 * HI;
-            // Lanes that are not live hold the neutral interval of the bounds (`min_all`).
-            entry.t0[k] = if live[k] { t0.max(0.0) } else { f32::INFINITY };
-            entry.t1[k] = if live[k] { t1 } else { f32::NEG_INFINITY };
+            let live = V::and(
+                V::and(test_ok, V::gt(tm, zero)),
+                V::le(t0, t1.mul(V::splat(HI))),
+            );
+            mask |= (V::bits(live) as u64) << at;
+            // Lanes that are not live hold the neutral interval of the bounds.
+            let e0 = V::select(live, t0.max(zero), inf);
+            let e1 = V::select(live, t1, ninf);
+            e0.store(&mut entry.t0[at..]);
+            e1.store(&mut entry.t1[at..]);
+            lo = e0.min(lo);
+            hi = e1.max(hi);
+            for a in 0..3 {
+                org_lo[a] = V::select(live, o[a], inf).min(org_lo[a]);
+                org_hi[a] = V::select(live, o[a], ninf).max(org_hi[a]);
+                inv_lo[a] = V::select(live, inv[a], inf).min(inv_lo[a]);
+                inv_hi[a] = V::select(live, inv[a], ninf).max(inv_hi[a]);
+                slack_hi[a] = V::select(live, slack[a], ninf).max(slack_hi[a]);
+            }
         }
-        entry.mask = bits(&live);
+        entry.mask = mask;
         for (lane, &r) in rays.rows.iter().enumerate() {
-            if !live[lane] {
+            if mask >> lane & 1 == 0 {
                 let at = if local { lane } else { r as usize };
                 (out_t[at], out_tri[at]) = (f32::INFINITY, u32::MAX);
             }
@@ -944,19 +972,16 @@ impl KdAccel {
         }
         f.k = axes.map(|x| x.min(2));
         for a in 0..3 {
-            let only = |x: &[f32; WIDE], none: f32| -> [f32; WIDE] {
-                std::array::from_fn(|k| if live[k] { x[k] } else { none })
-            };
-            f.org_lo[a] = min_all::<G>(&only(&f.org[a], f32::INFINITY));
-            f.org_hi[a] = max_all::<G>(&only(&f.org[a], f32::NEG_INFINITY));
-            f.inv_lo[a] = min_all::<G>(&only(&f.inv[a], f32::INFINITY));
-            f.inv_hi[a] = max_all::<G>(&only(&f.inv[a], f32::NEG_INFINITY));
-            f.slack_hi[a] = max_all::<G>(&only(&f.slack[a], f32::NEG_INFINITY));
+            f.org_lo[a] = lowest(org_lo[a]);
+            f.org_hi[a] = highest(org_hi[a]);
+            f.inv_lo[a] = lowest(inv_lo[a]);
+            f.inv_hi[a] = highest(inv_hi[a]);
+            f.slack_hi[a] = highest(slack_hi[a]);
         }
-        entry.lo = min_all::<G>(&entry.t0);
-        entry.hi = max_all::<G>(&entry.t1);
+        entry.lo = lowest(lo);
+        entry.hi = highest(hi);
         let lanes = entry.mask;
-        self.walk_frustum::<G>(f, entry, stack, tmp);
+        self.walk_frustum::<V>(f, entry, stack, tmp);
         for (lane, &r) in rays.rows.iter().enumerate() {
             if lanes >> lane & 1 != 0 {
                 let at = if local { lane } else { r as usize };
@@ -968,7 +993,7 @@ impl KdAccel {
     /// Front-to-back traversal of a frustum from `start` (see the module docs); each lane's
     /// answer is left in `f.best_t`, `f.best_tri`.
     #[inline(always)]
-    fn walk_frustum<const G: usize>(
+    fn walk_frustum<V: Wide>(
         &self,
         f: &mut Frustum,
         start: WideEntry,
@@ -982,7 +1007,7 @@ impl KdAccel {
                 .get(i as usize)
                 .is_some_and(|c| c.is_leaf() && c.count() == 0)
         };
-        let groups = WIDE / G;
+        let w = V::LANES;
         let mut sp = 0usize;
         let mut e = start;
         loop {
@@ -1010,17 +1035,16 @@ impl KdAccel {
                     0
                 } else {
                     let mut nl = 0u64;
-                    for g in 0..groups {
-                        if (m >> (g * G)) & group_bits::<G>() == 0 {
+                    let s = V::splat(split);
+                    for g in 0..WIDE / w {
+                        let at = g * w;
+                        if (m >> at) & group_bits(w) == 0 {
                             continue;
                         }
-                        let o = lanes::<G, f32>(&f.org[axis], g);
-                        let inv = lanes::<G, f32>(&f.inv[axis], g);
-                        let mut b = [false; G];
-                        for j in 0..G {
-                            b[j] = o[j] < split || (o[j] == split && inv[j] < 0.0);
-                        }
-                        nl |= bits(&b) << (g * G);
+                        let o = V::load(&f.org[axis][at..]);
+                        let inv = V::load(&f.inv[axis][at..]);
+                        let on = V::and(V::eq(o, s), V::lt(inv, V::splat(0.0)));
+                        nl |= (V::bits(V::or(V::lt(o, s), on)) as u64) << at;
                     }
                     nl & m
                 };
@@ -1072,23 +1096,24 @@ impl KdAccel {
                 };
                 let (mut go_near, mut go_far) = (0u64, 0u64);
                 let [near_t1, far_t0, far_t1] = tmp;
-                for g in 0..groups {
-                    if (m >> (g * G)) & group_bits::<G>() == 0 {
+                for g in 0..WIDE / w {
+                    let at = g * w;
+                    if (m >> at) & group_bits(w) == 0 {
                         continue;
                     }
-                    let (gn, gf) = step_lanes::<G>(
+                    let (nt1, ft0, ft1, gn, gf) = step_lanes::<V>(
                         split,
-                        lanes::<G, f32>(&f.org[axis], g),
-                        lanes::<G, f32>(&f.inv[axis], g),
-                        lanes::<G, f32>(&f.slack[axis], g),
-                        lanes::<G, f32>(&e.t0, g),
-                        lanes::<G, f32>(&e.t1, g),
-                        lanes_mut::<G, f32>(near_t1, g),
-                        lanes_mut::<G, f32>(far_t0, g),
-                        lanes_mut::<G, f32>(far_t1, g),
+                        V::load(&f.org[axis][at..]),
+                        V::load(&f.inv[axis][at..]),
+                        V::load(&f.slack[axis][at..]),
+                        V::load(&e.t0[at..]),
+                        V::load(&e.t1[at..]),
                     );
-                    go_near |= gn << (g * G);
-                    go_far |= gf << (g * G);
+                    nt1.store(&mut near_t1[at..]);
+                    ft0.store(&mut far_t0[at..]);
+                    ft1.store(&mut far_t1[at..]);
+                    go_near |= (gn as u64 & group_bits(w)) << at;
+                    go_far |= (gf as u64) << at;
                 }
                 go_near &= m;
                 go_far &= m;
@@ -1185,7 +1210,7 @@ impl KdAccel {
                 }
             };
             if let Some(n) = leaf {
-                self.leaf_frustum::<G>(f, n.offset() as usize, n.count() as usize, e.mask);
+                self.leaf_frustum::<V>(f, n.offset() as usize, n.count() as usize, e.mask);
             }
             // Pop the next entry with a lane that can still hold a closer (or tying) hit.
             loop {
@@ -1194,7 +1219,7 @@ impl KdAccel {
                 }
                 sp -= 1;
                 let top = &stack[sp];
-                let m = not_culled::<G>(&top.t0, &f.cull, top.mask);
+                let m = not_culled::<V>(&top.t0, &f.cull, top.mask);
                 if m != 0 {
                     e = *top;
                     e.mask = m;
@@ -1239,7 +1264,7 @@ impl KdAccel {
     /// Tests the leaf entries `start..start + count` against the lanes of `mask`, triangle by
     /// triangle in leaf order (as each single ray does), updating each lane's best hit.
     #[inline(always)]
-    fn leaf_frustum<const G: usize>(&self, f: &mut Frustum, start: usize, count: usize, mask: u64) {
+    fn leaf_frustum<V: Wide>(&self, f: &mut Frustum, start: usize, count: usize, mask: u64) {
         let (Some(tris), Some(ids)) = (
             self.tris.get(start..start + count),
             self.tree.tri_indices.get(start..start + count),
@@ -1250,14 +1275,16 @@ impl KdAccel {
         for (p, &id) in tris.iter().zip(ids) {
             let perm = |v: &[f32; 3]| [v[kx], v[ky], v[kz]];
             let (a, b, c) = (perm(&p[0]), perm(&p[1]), perm(&p[2]));
-            for g in 0..WIDE / G {
-                let gm = (mask >> (g * G)) & group_bits::<G>();
+            let w = V::LANES;
+            for g in 0..WIDE / w {
+                let at = g * w;
+                let gm = ((mask >> at) & group_bits(w)) as u32;
                 if gm == 0 {
                     continue;
                 }
-                let edge = hit_lanes::<G>(f, g, gm, &a, &b, &c, id) & gm;
+                let edge = hit_lanes::<V>(f, at, gm, &a, &b, &c, id) & gm;
                 if edge != 0 {
-                    self.edge_lanes(f, g * G, edge, p, id);
+                    self.edge_lanes(f, at, edge as u64, p, id);
                 }
             }
         }
@@ -1291,85 +1318,92 @@ impl KdAccel {
     }
 }
 
-/// One triangle (vertices `a`, `b`, `c` in the permuted axes) against the `G` lanes of group
-/// `g` whose bits are in `live`: the watertight test's operations in the scalar order, each hit taken as `Closest::accept` would. Returns the bits
-/// of the lanes on an edge (`u`, `v` or `w` zero), which the caller retests.
+/// One triangle (vertices `a`, `b`, `c` in the permuted axes) against the `V` lanes from `at`
+/// whose bits are in `live`: the watertight test's operations in the scalar order, each hit taken
+/// as `Closest::accept` would. Returns the bits of the lanes on an edge (`u`, `v` or `w` zero),
+/// which the caller retests.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn hit_lanes<const G: usize>(
+fn hit_lanes<V: Wide>(
     f: &mut Frustum,
-    g: usize,
-    live: u64,
+    at: usize,
+    live: u32,
     a: &[f32; 3],
     b: &[f32; 3],
     c: &[f32; 3],
     id: u32,
-) -> u64 {
+) -> u32 {
     let [kx, ky, kz] = f.k;
-    let ox = *lanes::<G, f32>(&f.org[kx], g);
-    let oy = *lanes::<G, f32>(&f.org[ky], g);
-    let oz = *lanes::<G, f32>(&f.org[kz], g);
-    let sx = *lanes::<G, f32>(&f.sx, g);
-    let sy = *lanes::<G, f32>(&f.sy, g);
-    let sz = *lanes::<G, f32>(&f.sz, g);
+    let ox = V::load(&f.org[kx][at..]);
+    let oy = V::load(&f.org[ky][at..]);
+    let oz = V::load(&f.org[kz][at..]);
+    let sx = V::load(&f.sx[at..]);
+    let sy = V::load(&f.sy[at..]);
+    let sz = V::load(&f.sz[at..]);
+    let zero = V::splat(0.0);
     // The 2D edge functions first; a group in which no live lane is inside the triangle or on
     // an edge (most groups at most triangles) skips the distance and the hit updates.
-    let mut u = [0.0f32; G];
-    let mut v = [0.0f32; G];
-    let mut w = [0.0f32; G];
-    let mut maybe = [false; G];
-    for j in 0..G {
-        let rel = |p: &[f32; 3]| [p[0] - ox[j], p[1] - oy[j], p[2] - oz[j]];
-        let (a, b, c) = (rel(a), rel(b), rel(c));
-        let ax = a[0] - sx[j] * a[2];
-        let ay = a[1] - sy[j] * a[2];
-        let bx = b[0] - sx[j] * b[2];
-        let by = b[1] - sy[j] * b[2];
-        let cx = c[0] - sx[j] * c[2];
-        let cy = c[1] - sy[j] * c[2];
-        u[j] = cx * by - cy * bx;
-        v[j] = ax * cy - ay * cx;
-        w[j] = bx * ay - by * ax;
-        let on_edge = u[j] == 0.0 || v[j] == 0.0 || w[j] == 0.0;
-        let neg = u[j] < 0.0 || v[j] < 0.0 || w[j] < 0.0;
-        let pos = u[j] > 0.0 || v[j] > 0.0 || w[j] > 0.0;
-        maybe[j] = on_edge | !(neg & pos);
-    }
-    let maybe = bits(&maybe) & live;
+    let (a0, a1, a2) = (
+        V::splat(a[0]).sub(ox),
+        V::splat(a[1]).sub(oy),
+        V::splat(a[2]).sub(oz),
+    );
+    let (b0, b1, b2) = (
+        V::splat(b[0]).sub(ox),
+        V::splat(b[1]).sub(oy),
+        V::splat(b[2]).sub(oz),
+    );
+    let (c0, c1, c2) = (
+        V::splat(c[0]).sub(ox),
+        V::splat(c[1]).sub(oy),
+        V::splat(c[2]).sub(oz),
+    );
+    let ax = a0.sub(sx.mul(a2));
+    let ay = a1.sub(sy.mul(a2));
+    let bx = b0.sub(sx.mul(b2));
+    let by = b1.sub(sy.mul(b2));
+    let cx = c0.sub(sx.mul(c2));
+    let cy = c1.sub(sy.mul(c2));
+    let u = cx.mul(by).sub(cy.mul(bx));
+    let v = ax.mul(cy).sub(ay.mul(cx));
+    let w = bx.mul(ay).sub(by.mul(ax));
+    let on_edge = V::bits(V::or(V::or(V::eq(u, zero), V::eq(v, zero)), V::eq(w, zero)));
+    let neg = V::or(V::or(V::lt(u, zero), V::lt(v, zero)), V::lt(w, zero));
+    let pos = V::or(V::or(V::gt(u, zero), V::gt(v, zero)), V::gt(w, zero));
+    let mixed = V::bits(V::and(neg, pos));
+    let maybe = (on_edge | !mixed) & live;
     if maybe == 0 {
         return 0;
     }
-    let limit = lanes_mut::<G, f32>(&mut f.limit, g);
-    let mut edge = [false; G];
-    let mut best_t = *lanes::<G, f32>(&f.best_t, g);
-    let mut best_tri = *lanes::<G, u32>(&f.best_tri, g);
-    let mut cull = *lanes::<G, f32>(&f.cull, g);
-    for j in 0..G {
-        let (u, v, w) = (u[j], v[j], w[j]);
-        let on_edge = u == 0.0 || v == 0.0 || w == 0.0;
-        let neg = u < 0.0 || v < 0.0 || w < 0.0;
-        let pos = u > 0.0 || v > 0.0 || w > 0.0;
-        let det = u + v + w;
-        let az = sz[j] * (a[2] - oz[j]);
-        let bz = sz[j] * (b[2] - oz[j]);
-        let cz = sz[j] * (c[2] - oz[j]);
-        let t = (u * az + v * bz + w * cz) / det;
-        let live_j = maybe >> j & 1 != 0;
-        let hit = live_j & !on_edge & !(neg & pos) & (det != 0.0) & (t > 0.0) & (t < limit[j]);
-        let better = hit & ((t < best_t[j]) | (id < best_tri[j]));
-        best_t[j] = if better { t } else { best_t[j] };
-        best_tri[j] = if better { id } else { best_tri[j] };
-        // `t` is positive and finite here: its successor is the next bit pattern.
-        limit[j] = if better {
-            f32::from_bits(t.to_bits() + 1)
-        } else {
-            limit[j]
-        };
-        cull[j] = if better { t * HI } else { cull[j] };
-        edge[j] = on_edge & live_j;
+    let inside = maybe & !on_edge & !mixed;
+    if inside != 0 {
+        let det = u.add(v).add(w);
+        let az = sz.mul(a2);
+        let bz = sz.mul(b2);
+        let cz = sz.mul(c2);
+        let t = u.mul(az).add(v.mul(bz)).add(w.mul(cz)).div(det);
+        let limit = V::load(&f.limit[at..]);
+        let ok = V::and(V::gt(t, zero), V::lt(t, limit));
+        let hit = inside & !V::bits(V::eq(det, zero)) & V::bits(ok);
+        if hit != 0 {
+            // A hit is better when it is closer, or (at equal `t`) of a lower index.
+            let closer = V::bits(V::lt(t, V::load(&f.best_t[at..])));
+            let mut ts = [0.0f32; 16];
+            t.store(&mut ts);
+            let mut m = hit;
+            while m != 0 {
+                let j = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let k = at + j;
+                if closer >> j & 1 != 0 || id < f.best_tri[k] {
+                    let t = ts[j];
+                    (f.best_t[k], f.best_tri[k]) = (t, id);
+                    // `t` is positive and finite here: its successor is the next bit pattern.
+                    f.limit[k] = f32::from_bits(t.to_bits() + 1);
+                    f.cull[k] = t * HI;
+                }
+            }
+        }
     }
-    *lanes_mut::<G, f32>(&mut f.best_t, g) = best_t;
-    *lanes_mut::<G, u32>(&mut f.best_tri, g) = best_tri;
-    *lanes_mut::<G, f32>(&mut f.cull, g) = cull;
-    bits(&edge)
+    on_edge & maybe
 }

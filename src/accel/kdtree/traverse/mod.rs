@@ -10,9 +10,21 @@
 //!   written once, generic over `f32` and 4 SIMD lanes;
 //! - `visit`: the closest and occluded modes (leaf visit, culling, answer);
 //! - `single`: the single-ray loop; `packet`: the 4-ray packet loop and the batch driver;
-//!   `frustum`: 64-ray frusta for closest-hit batches;
 //!   `hit4`: one triangle against a packet's 4 rays;
-//! - [`crate::simd`]: the SSE2 lanes (the crate's one `unsafe` module).
+//! - `frustum`: 64-ray frusta for closest-hit batches; `bundle`: light-rooted shadow bundles
+//!   for occluded batches (both over [`crate::simd`]'s `Wide` lanes: 16 with AVX-512, 8
+//!   otherwise);
+//! - [`crate::simd`]: the SIMD lanes and dispatch (the crate's one `unsafe` module).
+//!
+//! **Which loop a query takes** (every path gives the single-ray answer, bit for bit):
+//!
+//! | query | rays | loop |
+//! |---|---|---|
+//! | [`KdAccel::intersect_closest`], [`KdAccel::intersect_occluded`] | one | `single` |
+//! | [`KdAccel::intersect_closest_batch`] | ≥ 128, origins within `frustum::MAX_SPREAD` (camera rays, mirror reflections) | `frustum` per 64-ray screen tile; a rejected direction, and a frustum's last ≤ `SOLO` live lanes, `single` |
+//! | [`KdAccel::intersect_closest_batch`] | fewer, or origins spread | `packet` per 4 consecutive rays of equal direction signs, else `single` |
+//! | [`KdAccel::intersect_occluded_batch`] | ≥ `MIN_BUNDLED` ending at up to `MAX_APEXES` shared points (shadow rays to point lights) | `bundle`; rays ending elsewhere `single` |
+//! | [`KdAccel::intersect_occluded_batch`] | fewer | `packet`, else `single` |
 //!
 //! Traversal is front-to-back and stack-based (fixed array, no allocation per ray), generic over
 //! the query mode and the triangle test
@@ -60,7 +72,7 @@ use super::{KdTree, TriHit, exact_root};
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
 use crate::scene::TriangleTest;
-use crate::simd::{Kernel, Level, dispatch};
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
 pub use bundle::BundleCounts;
 use visit::{Closest, Occluded};
 
@@ -189,9 +201,10 @@ impl KdAccel {
     ) {
         let n = origins.len();
         assert!(dirs.len() == n && t_max.len() == n && out_t.len() == n && out_tri.len() == n);
-        dispatch(
+        dispatch_wide(
             level,
             ClosestBatch {
+                level,
                 accel: self,
                 origins,
                 dirs,
@@ -251,8 +264,10 @@ impl KdAccel {
     }
 }
 
-/// The closest-hit batch as a [`Kernel`]: compiled once per SIMD level.
+/// The closest-hit batch as a [`WideKernel`]: compiled once per SIMD level.
 struct ClosestBatch<'a> {
+    /// The level it is compiled for (for the parallel path's own dispatch).
+    level: Level,
     /// The accelerator.
     accel: &'a KdAccel,
     /// Ray origins.
@@ -267,12 +282,13 @@ struct ClosestBatch<'a> {
     out_tri: &'a mut [u32],
 }
 
-impl Kernel for ClosestBatch<'_> {
+impl WideKernel for ClosestBatch<'_> {
     type Output = ();
 
     #[inline(always)]
-    fn run(self, level: Level) {
+    fn run<V: Wide>(self) {
         let ClosestBatch {
+            level,
             accel,
             origins,
             dirs,
@@ -284,12 +300,7 @@ impl Kernel for ClosestBatch<'_> {
         let wide = if origins.len() >= frustum::PAR_MIN && rayon::current_num_threads() > 1 {
             accel.closest_frusta_par(level, origins, dirs, t_max, out_t, out_tri, &mut scratch)
         } else {
-            match level {
-                Level::Avx512 => {
-                    accel.closest_frusta::<16>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
-                }
-                _ => accel.closest_frusta::<8>(origins, dirs, t_max, out_t, out_tri, &mut scratch),
-            }
+            accel.closest_frusta::<V>(origins, dirs, t_max, out_t, out_tri, &mut scratch)
         };
         frustum::put_scratch(scratch);
         if !wide {
