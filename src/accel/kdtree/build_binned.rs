@@ -472,10 +472,10 @@ mod tests {
 
     #[test]
     fn binned_nodes_cut_off_empty_space_at_the_geometry_face() {
-        // 4,096 triangles: the root is binned. Bins over the root box would put the plane at a
-        // bin boundary; the geometry's faces are candidates too, so the root plane bounds the
-        // cluster exactly.
-        let mesh = corner_cluster(4096);
+        // 10,000 triangles: the root is binned. Bins over the root box would put the plane at a
+        // bin boundary (a multiple of 100 / bins); the geometry's faces are candidates too, so
+        // the root plane bounds the cluster exactly.
+        let mesh = corner_cluster(10_000);
         let tree = KdTree::build(&mesh, BuildMethod::Sah);
         tree.validate(&mesh).expect("valid");
         let root = tree.nodes()[0];
