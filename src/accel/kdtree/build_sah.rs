@@ -33,7 +33,7 @@ const PARALLEL_MIN: usize = 4096;
 /// Nodes with at most this many triangles are built by [`node_small`]: events are regenerated
 /// and sorted per node in one reused scratch buffer instead of being filtered and merged, and
 /// children's triangles live on the stack, so a small subtree makes one heap allocation.
-const SMALL: usize = 48;
+pub(crate) const SMALL: usize = 48;
 
 /// The builder's own constants, for [`super::builder_settings`].
 pub(crate) const SETTINGS: &str = "empty 0.8/0.02 small 48 exact-sweep";
@@ -193,14 +193,17 @@ pub(crate) fn subtree(
     node(mesh, bx, work, depth, max_depth, out);
 }
 
-/// Best split found by the sweep.
+/// Best split found by a sweep or by binning.
 #[derive(Clone, Copy, Debug)]
-struct Split {
-    cost: f32,
-    axis: usize,
-    pos: f32,
+pub(crate) struct Split {
+    /// SAH cost of the split.
+    pub(crate) cost: f32,
+    /// Split axis.
+    pub(crate) axis: usize,
+    /// Plane position on the axis.
+    pub(crate) pos: f32,
     /// Triangles lying in the plane go left (else right).
-    planar_left: bool,
+    pub(crate) planar_left: bool,
 }
 
 /// The SAH cost of split planes on one axis of a node's box: the one cost formula of the exact
@@ -378,7 +381,7 @@ fn node(mesh: &TriangleMesh, bx: Aabb, w: Work, depth: usize, max_depth: usize, 
 
 /// Side of each triangle for a split: 1 = left only, 2 = right only, 3 = both (straddles).
 #[inline]
-fn classify(b: &Aabb, split: &Split) -> u8 {
+pub(crate) fn classify(b: &Aabb, split: &Split) -> u8 {
     let (a, c, s) = (b.0[split.axis], b.1[split.axis], split.pos);
     if a == s && c == s {
         if split.planar_left { 1 } else { 2 }

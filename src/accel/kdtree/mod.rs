@@ -1,8 +1,9 @@
 //! kD tree over a [`TriangleMesh`]: the accelerator of the kD-intersect stage.
 //!
 //! Split like Embree/obvhs: [`node`] (8-byte node layout), `build_midpoint` (the assignment's
-//! longest-axis midpoint rule), `build_binned` (parallel binned SAH for the upper levels of the
-//! default SAH tree) over `build_sah` (Wald & Havran 2006, O(N log N), the exact sweep below),
+//! longest-axis midpoint rule), `build_binned` (binned SAH for the nodes of more than 1,024
+//! triangles of the default SAH tree: in parallel over triangles at the top, then subtrees as
+//! sequential tasks) over `build_sah` (Wald & Havran 2006, O(N log N), the exact sweep below),
 //! `traverse` ([`KdAccel`]: closest and occluded queries; its SSE2 lanes are in [`crate::simd`],
 //! the crate's one `unsafe` module), `text` (the SPEC §6 text
 //! format), `validate` and `stats`. The builders read mesh vertices and triangle indices and
@@ -68,6 +69,24 @@ pub fn builder_settings(method: BuildMethod) -> String {
     }
 }
 
+/// Where a build's time went ([`KdTree::build_profiled`]). The parallel phases are summed over
+/// threads, so on more than one thread they can add up to more than `wall_seconds`.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct BuildPhases {
+    /// Listing the non-degenerate triangles and the mesh bounds (wall time).
+    pub input_seconds: f64,
+    /// Triangle bounds and their union (wall time).
+    pub bounds_seconds: f64,
+    /// Binning and partitioning the nodes built in parallel over triangles (thread time).
+    pub top_seconds: f64,
+    /// The sequential subtree tasks below them (thread time).
+    pub task_seconds: f64,
+    /// Number of sequential subtree tasks.
+    pub tasks: usize,
+    /// The whole build (wall time).
+    pub wall_seconds: f64,
+}
+
 /// Closest hit of a ray: distance `t` (in units of the direction's length) and triangle index.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TriHit {
@@ -95,12 +114,25 @@ impl KdTree {
     /// Builds a tree over `mesh` (rayon splits the upper levels across threads; the result does
     /// not depend on the thread count).
     pub fn build(mesh: &TriangleMesh, method: BuildMethod) -> KdTree {
+        KdTree::build_profiled(mesh, method).0
+    }
+
+    /// [`KdTree::build`], also returning where the build's time went (for the SAH builder;
+    /// the midpoint builder reports its whole time as `wall_seconds` only).
+    pub fn build_profiled(mesh: &TriangleMesh, method: BuildMethod) -> (KdTree, BuildPhases) {
+        let start = std::time::Instant::now();
         let (root, tris) = build_input(mesh);
-        let flat = match method {
-            BuildMethod::Midpoint => build_midpoint::build(mesh, root, tris),
+        let input_seconds = start.elapsed().as_secs_f64();
+        let (flat, mut phases) = match method {
+            BuildMethod::Midpoint => (
+                build_midpoint::build(mesh, root, tris),
+                BuildPhases::default(),
+            ),
             BuildMethod::Sah => build_binned::build(mesh, root, tris),
         };
-        KdTree::from_flat(flat, root, mesh)
+        phases.input_seconds = input_seconds;
+        phases.wall_seconds = start.elapsed().as_secs_f64();
+        (KdTree::from_flat(flat, root, mesh), phases)
     }
 
     /// The SAH tree with the exact event sweep at every level (Wald & Havran 2006), no binning:

@@ -589,7 +589,7 @@ fn build_tree(
     let frame = RenderFrame::centered_on(&obj);
     let m = obj.to_frame(frame.origin)?;
     let start = Instant::now();
-    let tree = KdTree::build(&m, method);
+    let (tree, phases) = KdTree::build_profiled(&m, method);
     let build = start.elapsed().as_secs_f64();
     // Streamed to a partial file renamed over the output when complete: the text of a large tree
     // (~330 B a triangle) is never held in memory, and a failed write leaves no file behind.
@@ -623,13 +623,23 @@ fn build_tree(
             BuildMethod::Midpoint => "midpoint",
         };
         println!(
-            "{{\"mesh\":{},\"method\":\"{method}\",\"triangles\":{},\"threads\":{},\"load_seconds\":{load:.6},\"build_seconds\":{build:.6},\"nodes\":{},\"leaves\":{},\"sah_cost\":{:.4},\"cache\":{}}}",
+            "{{\"mesh\":{},\"method\":\"{method}\",\"triangles\":{},\"threads\":{},\"load_seconds\":{load:.6},\"build_seconds\":{build:.6},\"nodes\":{},\"leaves\":{},\"empty_leaves\":{},\"references\":{},\"max_depth\":{},\"mean_tris_per_leaf\":{:.3},\"max_tris_per_leaf\":{},\"sah_cost\":{:.4},\"phases\":{{\"input_seconds\":{:.6},\"bounds_seconds\":{:.6},\"top_thread_seconds\":{:.6},\"task_thread_seconds\":{:.6},\"tasks\":{}}},\"cache\":{}}}",
             json_string(&mesh.display().to_string()),
             m.len(),
             rayon::current_num_threads(),
             stats.nodes,
             stats.leaves,
+            stats.empty_leaves,
+            stats.references,
+            stats.max_depth,
+            stats.mean_tris_per_leaf,
+            stats.max_tris_per_leaf,
             stats.sah_cost,
+            phases.input_seconds,
+            phases.bounds_seconds,
+            phases.top_seconds,
+            phases.task_seconds,
+            phases.tasks,
             stored.map_or("null".to_string(), |p| json_string(
                 &p.display().to_string()
             ))
