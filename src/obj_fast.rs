@@ -9,8 +9,8 @@
 //! first counts `v` and `vt` lines (so relative indices resolve without a sequential scan), the
 //! second parses; the per-model renumbering is one sequential pass over the corners.
 //!
-//! Anything the fast path does not reproduce exactly — `mtllib`, `usemtl`, `vn` (normals are
-//! tobj's business), `l`, `p`, unknown keywords, `v` with a weight or colours, continuation
+//! Anything the fast path does not reproduce exactly — `mtllib`, `usemtl`, `vn` and normal
+//! indices (normals are tobj's business), index 0, `l`, `p`, unknown keywords, `v` with a weight or colours, continuation
 //! backslashes, non-ASCII bytes, and any malformed line or out-of-range index — sends the whole
 //! file to `tobj`.
 
@@ -172,10 +172,14 @@ fn parse_chunk(text: &str, (mut nv, mut nvt): (usize, usize)) -> Option<Chunk> {
                     for (k, part) in parts.by_ref().take(3).enumerate() {
                         if !part.is_empty() {
                             let x: i64 = part.parse().ok()?;
+                            // Index 0 is never valid; a normal index is tobj's business (the
+                            // fast path takes no `vn` lines, so it cannot be in range).
+                            if x == 0 || k == 2 {
+                                return None;
+                            }
                             corner[k] = match k {
                                 0 => resolve(x, nv),
-                                1 => resolve(x, nvt),
-                                _ => resolve(x, 0),
+                                _ => resolve(x, nvt),
                             };
                         }
                     }
@@ -236,9 +240,7 @@ fn renumber(chunks: &[Chunk], all: &[[f64; 3]], texcoords: usize) -> Option<Pars
             }
             let mut out = [0u32; 3];
             for (o, &(v, vt, vn)) in out.iter_mut().zip(tri) {
-                if v >= all.len() as u64
-                    || (texcoords > 0 && vt != MISSING && vt >= texcoords as u64)
-                {
+                if v >= all.len() as u64 || (vt != MISSING && vt >= texcoords as u64) {
                     return None;
                 }
                 let next = (positions.len() - model_start) as u32;
