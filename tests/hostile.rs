@@ -78,7 +78,10 @@ fn load_mtl_scene(dir: &Scratch, mtl: &str) -> Result<wavefront::Scene, String> 
     dir.write("m.mtl", mtl);
     dir.write(
         "m.obj",
-        &format!("mtllib m.mtl\n{}usemtl a\nf 1 2 3\n", &TRIANGLE[..TRIANGLE.len() - 8]),
+        &format!(
+            "mtllib m.mtl\n{}usemtl a\nf 1 2 3\n",
+            &TRIANGLE[..TRIANGLE.len() - 8]
+        ),
     );
     let scene = dir.write(
         "s.toml",
@@ -253,7 +256,8 @@ fn arrays_longer_than_three_are_errors() {
 
 #[test]
 fn huge_numbers_in_messages_are_printed_short() {
-    let text = scene_text("[[sphere]]\ncenter = [0.0, 0.0, -7.0]\nradius = 1e308\nmaterial = \"floor\"\n");
+    let text =
+        scene_text("[[sphere]]\ncenter = [0.0, 0.0, -7.0]\nradius = 1e308\nmaterial = \"floor\"\n");
     let e = parse(&text, Path::new("s.toml")).err().expect("accepted");
     let e = e.to_string();
     assert!(e.contains("1e308") && e.len() < 120, "{e}");
@@ -262,9 +266,12 @@ fn huge_numbers_in_messages_are_printed_short() {
 #[test]
 fn a_missing_user_mesh_is_not_described_as_the_sibenik_mesh() {
     let dir = Scratch::new("hostile-missing");
-    let e = load_world(&dir, "[[mesh]]\npath = \"bunnyy.obj\"\nmaterial = \"floor\"\n")
-        .err()
-        .expect("a missing mesh was accepted");
+    let e = load_world(
+        &dir,
+        "[[mesh]]\npath = \"bunnyy.obj\"\nmaterial = \"floor\"\n",
+    )
+    .err()
+    .expect("a missing mesh was accepted");
     assert!(e.contains("bunnyy.obj"), "{e}");
     assert!(!e.contains("Sibenik") && !e.contains("75,284"), "{e}");
 }
@@ -350,7 +357,12 @@ fn an_output_path_that_is_not_a_regular_file_is_an_error_and_kept() {
     let e = film().save(&out, 2.2).expect_err("a FIFO was replaced");
     assert!(chain(&e).contains("out.ppm"), "{}", chain(&e));
     use std::os::unix::fs::FileTypeExt;
-    assert!(std::fs::symlink_metadata(&out).unwrap().file_type().is_fifo());
+    assert!(
+        std::fs::symlink_metadata(&out)
+            .unwrap()
+            .file_type()
+            .is_fifo()
+    );
     assert_eq!(dir.files(), vec!["out.ppm"], "a temporary file was left");
 }
 
@@ -381,6 +393,8 @@ fn a_255_byte_output_name_can_be_written() {
     let name = format!("{}.ppm", "x".repeat(251));
     assert_eq!(name.len(), 255);
     let out: PathBuf = dir.join(&name);
-    film().save(&out, 2.2).unwrap_or_else(|e| panic!("{}", chain(&e)));
+    film()
+        .save(&out, 2.2)
+        .unwrap_or_else(|e| panic!("{}", chain(&e)));
     assert_eq!(dir.files(), vec![name]);
 }
