@@ -232,7 +232,13 @@ impl ObjMesh {
             path: path.to_path_buf(),
             source,
         })?;
-        let text = unix_line_ends(&text);
+        ObjMesh::parse_with(&text, path, what)
+    }
+
+    /// [`ObjMesh::read_with`] of OBJ text already read; `path` names the file in errors and
+    /// anchors its `mtllib` files.
+    pub fn parse_with(text: &str, path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
+        let text = unix_line_ends(text);
         check_lines(&text, path)?;
         let options = tobj::LoadOptions {
             triangulate: true,

@@ -155,6 +155,11 @@ pub fn read_library(path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
             file: path.to_path_buf(),
             source,
         })?;
+    parse_library(&text, path)
+}
+
+/// [`read_library`] of MTL text already read; `path` names the file in errors.
+pub fn parse_library(text: &str, path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
     let mut out: Vec<tobj::Material> = vec![];
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;

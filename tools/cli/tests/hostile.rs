@@ -249,3 +249,22 @@ fn quiet_silences_wrote() {
     assert_eq!(String::from_utf8_lossy(&o.stdout), "");
     assert_eq!(stderr(&o), "");
 }
+
+#[test]
+fn memory_a_setting_needs_is_estimated_and_refused_before_allocating() {
+    let dir = Scratch::new("memory");
+    let args = ["render", "--wave-samples", "268435456", "-o", "x.png"];
+    let o = dir.run_within(60, &args);
+    let line = clean_error(&o, &args);
+    assert!(
+        line.contains("--wave-samples") && line.contains("GiB"),
+        "{line}"
+    );
+    let scene = "[image]\nwidth = 32768\nheight = 32768\n\n[camera]\neye = [0.0, 0.0, 0.0]\n\
+        look_at = [0.0, 0.0, -1.0]\nup = [0.0, 1.0, 0.0]\nfov_y = 40.0\n";
+    std::fs::write(dir.path().join("big.toml"), scene).unwrap();
+    let args = ["render", "big.toml", "-o", "x.exr"];
+    let o = dir.run_within(60, &args);
+    let line = clean_error(&o, &args);
+    assert!(line.contains("x.exr") && line.contains("GiB"), "{line}");
+}
