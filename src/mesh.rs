@@ -160,6 +160,23 @@ impl TriangleMesh {
         (b - a).cross(c - a)
     }
 
+    /// Unit geometric normal of triangle `k`. When the f32 cross product's square length is a
+    /// normal number it is normalised in f32 (the bits every valid scene had); when it underflows
+    /// or overflows (a tiny triangle, or one spanning ±1e19) the cross product is taken in f64 and
+    /// scaled by its largest component before normalising, so a huge triangle's normal does not
+    /// overflow to NaN.
+    #[inline]
+    pub fn unit_normal(&self, k: usize) -> Vec3 {
+        let n = self.geometric_normal(k);
+        let l2 = n.length_squared();
+        if l2.is_normal() && l2.is_finite() {
+            return n.normalize();
+        }
+        let [a, b, c] = self.triangle(k).map(|v| v.as_dvec3());
+        let n = (b - a).cross(c - a);
+        (n / n.abs().max_element()).normalize().as_vec3()
+    }
+
     /// True when triangle `k` has zero area: its edge cross product, computed in `f64` from the
     /// `f32` coordinates, is exactly zero. Degenerate triangles keep their index but are never
     /// hit (the kD tree leaves them out and the brute-force reference skips them).

@@ -520,7 +520,7 @@ impl World {
                     .triangles
                     .as_ref()
                     .expect("triangle id without triangles");
-                let n = tris.mesh.geometric_normal(k).normalize();
+                let n = tris.mesh.unit_normal(k);
                 let (p, error, b) = triangle::hit_point(o, d, tris.mesh.triangle(k))
                     .unwrap_or_else(|| (p, gamma(8) * (o.abs() + (t * d).abs()), [1.0, 0.0, 0.0]));
                 shading = tris.shading_normal(k, b);

@@ -436,3 +436,65 @@ fn a_tree_file_for_another_mesh_is_an_error_not_a_wrong_image() {
         .expect("a tree built for another mesh was used");
     assert!(e.contains("t.kd") && e.contains("invalid tree"), "{e}");
 }
+
+// Case 9: EXR bytes.
+
+#[test]
+fn exr_bytes_are_the_same_on_every_write() {
+    let dir = Scratch::new("hostile-exr");
+    let mut film = Film::new(256, 256);
+    for (i, p) in film.pixels.iter_mut().enumerate() {
+        *p = Vec3::new(
+            (i % 251) as f32 / 7.0,
+            (i % 13) as f32,
+            (i / 256) as f32 * 0.01,
+        );
+    }
+    let first = dir.join("a.exr");
+    film.save(&first, 2.2).unwrap();
+    let first = std::fs::read(&first).unwrap();
+    for k in 0..8 {
+        let again = dir.join(&format!("b{k}.exr"));
+        wavefront_kit::testkit::in_pool(1 + k % 3, || film.save(&again, 2.2)).unwrap();
+        assert!(std::fs::read(&again).unwrap() == first, "write {k} differs");
+    }
+}
+
+// Case 15.
+
+#[test]
+fn a_huge_triangle_is_shaded_like_a_small_one() {
+    // A triangle facing the camera at z = -5, spanning ±1 or ±1e18 around the view axis, lit
+    // from the eye: the centre pixel sees the same point, normal and light either way. Without
+    // shadow rays: their offsets at such sizes are the other half of case 15, not mended here.
+    let dir = Scratch::new("hostile-huge-triangle");
+    let centre = |s: f64| {
+        dir.write(
+            "t.obj",
+            &format!(
+                "v {} {} -5\nv {} {} -5\nv 0 {} -5\nf 1 2 3\n",
+                -s, -s, s, -s, s
+            ),
+        );
+        let scene = dir.write(
+            "s.toml",
+            &format!(
+                "[image]\nwidth = 3\nheight = 3\n\n{}[render]\nshadows = false\n\n\
+                 [[light]]\nposition = [0.0, 0.0, 0.0]\n\n\
+                 [[mesh]]\npath = \"t.obj\"\nmaterial = \"floor\"\n",
+                scene_text("")
+            ),
+        );
+        let scene = load(&scene).unwrap_or_else(|e| panic!("{}", chain(&e)));
+        let film = wavefront_kit::testkit::render_film_with(&scene, Default::default());
+        film.pixels[4]
+    };
+    let small = centre(1.0);
+    assert!(small.x > 0.5, "the small triangle is lit: {small}");
+    // From ±1e10 the f32 square length of the normal overflowed (NaN shading: the direct light
+    // was lost). At ±1e19 the triangle is missed altogether: the intersection test overflows,
+    // which is the traversal's part of case 15, not mended here.
+    for s in [1e10, 1e12, 1e18] {
+        assert_eq!(centre(s), small, "±{s}");
+    }
+}
