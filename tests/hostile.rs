@@ -192,8 +192,8 @@ fn a_mesh_without_triangles_is_an_error_unless_the_scene_allows_it() {
     let dir = Scratch::new("hostile-empty");
     dir.write("m.obj", "# nothing here\nv 0 0 0\n");
     let e = load_world(&dir, "[[mesh]]\npath = \"m.obj\"\nmaterial = \"floor\"\n")
-        .err()
-        .expect("an empty mesh was accepted");
+        .map(|_| ())
+        .expect_err("an empty mesh was accepted");
     assert!(e.contains("m.obj") && e.contains("no triangles"), "{e}");
     load_world(
         &dir,
@@ -258,7 +258,7 @@ fn arrays_longer_than_three_are_errors() {
 fn huge_numbers_in_messages_are_printed_short() {
     let text =
         scene_text("[[sphere]]\ncenter = [0.0, 0.0, -7.0]\nradius = 1e308\nmaterial = \"floor\"\n");
-    let e = parse(&text, Path::new("s.toml")).err().expect("accepted");
+    let e = parse(&text, Path::new("s.toml")).expect_err("accepted");
     let e = e.to_string();
     assert!(e.contains("1e308") && e.len() < 120, "{e}");
 }
@@ -270,8 +270,8 @@ fn a_missing_user_mesh_is_not_described_as_the_sibenik_mesh() {
         &dir,
         "[[mesh]]\npath = \"bunnyy.obj\"\nmaterial = \"floor\"\n",
     )
-    .err()
-    .expect("a missing mesh was accepted");
+    .map(|_| ())
+    .expect_err("a missing mesh was accepted");
     assert!(e.contains("bunnyy.obj"), "{e}");
     assert!(!e.contains("Sibenik") && !e.contains("75,284"), "{e}");
 }
@@ -285,8 +285,8 @@ fn a_directory_as_mesh_path_says_it_is_a_directory() {
             &dir,
             &format!("[[mesh]]\npath = \"d.obj\"\nmaterial = \"{material}\"\n"),
         )
-        .err()
-        .expect("a directory was accepted as a mesh");
+        .map(|_| ())
+        .expect_err("a directory was accepted as a mesh");
         assert!(e.contains("d.obj") && e.contains("is a directory"), "{e}");
         assert!(!e.contains("scene file"), "{e}");
     }
@@ -325,7 +325,7 @@ fn an_oversized_scene_file_is_refused_with_its_cap() {
     let f = std::fs::File::create(&path).unwrap();
     f.set_len(64 << 20).unwrap(); // sparse: no disk used
     drop(f);
-    let e = load(&path).err().expect("a 64 MiB scene file was read");
+    let e = load(&path).expect_err("a 64 MiB scene file was read");
     let e = chain(&e);
     assert!(e.contains("big.toml") && e.contains("MiB"), "{e}");
 }
@@ -432,8 +432,8 @@ fn a_tree_file_for_another_mesh_is_an_error_not_a_wrong_image() {
     };
     load_world(&dir, &body("a.obj")).expect("the tree of a.obj fits a.obj");
     let e = load_world(&dir, &body("b.obj"))
-        .err()
-        .expect("a tree built for another mesh was used");
+        .map(|_| ())
+        .expect_err("a tree built for another mesh was used");
     assert!(e.contains("t.kd") && e.contains("invalid tree"), "{e}");
 }
 
