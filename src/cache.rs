@@ -89,9 +89,8 @@ impl CacheKey {
 /// cache at once).
 pub fn read_parallel(path: &Path) -> io::Result<Vec<u8>> {
     use std::os::unix::fs::FileExt;
-    let file = std::fs::File::open(path)?;
-    let len = usize::try_from(file.metadata()?.len())
-        .map_err(|_| io::Error::from(io::ErrorKind::OutOfMemory))?;
+    let (file, len) = crate::input::open_regular(path)?;
+    let len = usize::try_from(len).map_err(|_| io::Error::from(io::ErrorKind::OutOfMemory))?;
     let mut bytes: Vec<u8> = bytemuck::zeroed_vec(len);
     bytes
         .par_chunks_mut(PIECE)
@@ -187,18 +186,15 @@ impl TreeCache {
     pub fn load(&self, key: CacheKey) -> Result<Option<CachedTree>, CacheError> {
         use std::os::unix::fs::FileExt;
         let path = self.path_of(key);
-        let file = match std::fs::File::open(&path) {
+        // Only a regular file is opened: a FIFO planted in the cache folder would block `open`.
+        if crate::input::is_absent(&path) {
+            return Ok(None);
+        }
+        let (file, len) = match crate::input::open_regular(&path) {
             Ok(f) => f,
             Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(None),
             Err(source) => return Err(CacheError::Read { path, source }),
         };
-        let len = file
-            .metadata()
-            .map_err(|source| CacheError::Read {
-                path: path.clone(),
-                source,
-            })?
-            .len();
         let read = |offset: u64, out: &mut [u8]| file.read_exact_at(out, offset);
         match decode_from(&read, len, key) {
             Ok(entry) => Ok(Some(entry)),

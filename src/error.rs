@@ -47,15 +47,21 @@ pub enum SceneError {
         name: String,
     },
     /// A mesh file the scene needs is not there.
-    #[error(
-        "mesh file not found: {} — the Sibenik mesh (sibenik.obj, 75,284 triangles) belongs at \
-         ../shared/data/sibenik/sibenik.obj relative to the project root; put it there, set \
-         WAVEFRONT_SIBENIK=/path/to/sibenik.obj, or pass --mesh PATH",
-        path.display()
-    )]
+    #[error("mesh file not found: {}{}", path.display(), sibenik_hint(*sibenik))]
     MissingMesh {
         /// Where it was looked for.
         path: PathBuf,
+        /// The mesh is the Sibenik cathedral (a built-in scene's, or a file named `sibenik.obj`):
+        /// the message says where it belongs.
+        sibenik: bool,
+    },
+    /// A mesh file the scene reads (for its MTL materials) cannot be read.
+    #[error("cannot read mesh file {}", file.display())]
+    MeshIo {
+        /// The mesh file.
+        file: PathBuf,
+        /// The I/O error.
+        source: std::io::Error,
     },
     /// A frame the scene's camera cannot show (outside its camera path, or a degenerate view).
     #[error("{scene}: {message}")]
@@ -73,6 +79,28 @@ pub enum SceneError {
         /// What is wrong.
         message: String,
     },
+}
+
+/// Where the Sibenik mesh belongs, for [`SceneError::MissingMesh`].
+fn sibenik_hint(sibenik: bool) -> &'static str {
+    if sibenik {
+        " — the Sibenik mesh (sibenik.obj, 75,284 triangles) belongs at \
+         ../shared/data/sibenik/sibenik.obj relative to the project root; put it there, set \
+         WAVEFRONT_SIBENIK=/path/to/sibenik.obj, or pass --mesh PATH"
+    } else {
+        ""
+    }
+}
+
+/// `x` printed short: as Rust prints it when that is short, else in exponent form (`1e308`, not
+/// 309 digits; `1e-40`, not 44 zeros).
+pub fn short(x: f64) -> String {
+    let plain = x.to_string();
+    if plain.len() <= 12 {
+        plain
+    } else {
+        format!("{x:e}")
+    }
 }
 
 /// Anything that can go wrong turning a [`crate::scene::Scene`] into a traceable world.

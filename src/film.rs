@@ -78,21 +78,17 @@ fn add_range(
     keep: &(impl Fn(usize) -> bool + Sync),
 ) {
     if slot.len() <= 4 * MIN_CHUNK {
-        for (i, (s, v)) in slot.iter().zip(value).enumerate() {
-            if keep(offset + i) {
-                out[s.0 as usize - base] += *v;
-            }
-        }
-        return;
+        return add_serial(out, base, slot, value, offset, keep);
     }
-    // Split at the middle, moved forward past rows that share the middle row's slot.
-    let mut mid = slot.len() / 2;
-    while mid < slot.len() && slot[mid] == slot[mid - 1] {
-        mid += 1;
-    }
-    if mid == slot.len() {
-        return add_range(out, base, &slot[..mid], &value[..mid], offset, keep);
-    }
+    // Split where the slot changes: at the middle, moved forward past rows that share the middle
+    // row's slot, else backward (when every row from the middle on shares one slot). Rows of one
+    // slot are never split, so where the split falls does not change any sum.
+    let half = slot.len() / 2;
+    let forward = (half..slot.len()).find(|&i| slot[i] != slot[i - 1]);
+    let Some(mid) = forward.or_else(|| (1..half).rev().find(|&i| slot[i] != slot[i - 1])) else {
+        // One slot for every row: one serial sum, in row order.
+        return add_serial(out, base, slot, value, offset, keep);
+    };
     let split = slot[mid].0 as usize;
     let (lo, hi) = out.split_at_mut(split - base);
     let (ls, hs) = slot.split_at(mid);
@@ -101,6 +97,22 @@ fn add_range(
         || add_range(lo, base, ls, lv, offset, keep),
         || add_range(hi, split, hs, hv, offset + mid, keep),
     );
+}
+
+/// [`add_range`] on one task, in row order.
+fn add_serial(
+    out: &mut [Vec3],
+    base: usize,
+    slot: &[SampleSlot],
+    value: &[Vec3],
+    offset: usize,
+    keep: &(impl Fn(usize) -> bool + Sync),
+) {
+    for (i, (s, v)) in slot.iter().zip(value).enumerate() {
+        if keep(offset + i) {
+            out[s.0 as usize - base] += *v;
+        }
+    }
 }
 
 /// A finished image in linear radiance, row-major, row 0 at the top.

@@ -43,6 +43,7 @@ pub mod error;
 pub mod film;
 pub mod frame;
 pub mod geometry;
+pub mod input;
 pub mod mesh;
 pub mod obj_fast;
 pub mod output;

@@ -1,9 +1,13 @@
 //! Triangle meshes: flat vertex and index arrays loaded from Wavefront OBJ files.
 //!
-//! Reads OBJ text (through `tobj`), writes a [`TriangleMesh`] whose triangle `k` is the `k`-th
-//! face of the file. Bad input is rejected here, at load time, with errors naming file and line,
-//! so the kernels that read the mesh later never see non-finite coordinates or bad indices.
+//! Reads OBJ text (checked line by line by [`check_lines`], then parsed by `tobj`), writes a
+//! [`TriangleMesh`] whose triangle `k` is the `k`-th face of the file. Bad input is rejected here,
+//! at load time, with errors naming file and line, so the kernels that read the mesh later never
+//! see non-finite coordinates or bad indices — and a file that is not OBJ (binary bytes, a text
+//! file of another kind) is an error at its first line that is not OBJ, never an empty mesh.
+//! Line ends may be LF, CR LF or CR alone.
 
+use std::borrow::Cow;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
@@ -55,6 +59,22 @@ pub enum MeshError {
         /// What was wrong.
         message: String,
     },
+    /// The mesh has no triangles, and its scene does not allow that.
+    #[error(
+        "{path}: the mesh has no triangles (set allow_empty = true in its [[mesh]] if that is meant)"
+    )]
+    Empty {
+        /// File that failed.
+        path: PathBuf,
+    },
+    /// The path names a mesh format this build does not read.
+    #[error("{path}: {message}")]
+    Format {
+        /// File that failed.
+        path: PathBuf,
+        /// Which format, and what is read.
+        message: String,
+    },
     /// `tobj` rejected the file and the line scan could not locate the cause.
     #[error("{path}: obj error: {message}")]
     Obj {
@@ -63,6 +83,27 @@ pub enum MeshError {
         /// `tobj`'s description.
         message: String,
     },
+}
+
+/// `Ok` when `path` names an OBJ file (`.obj`, any case); PLY and glTF are an error naming the
+/// file until they are read (SPEC §15), and so is any other extension.
+pub fn check_format(path: &Path) -> Result<(), MeshError> {
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let message = match ext.as_deref() {
+        Some("obj") => return Ok(()),
+        Some(e @ ("ply" | "gltf" | "glb")) => {
+            format!(".{e} meshes are not supported yet: this format is not read (use .obj)")
+        }
+        Some(e) => format!("unknown mesh format .{e} (use .obj)"),
+        None => "no extension: the mesh format is not known (use .obj)".to_owned(),
+    };
+    Err(MeshError::Format {
+        path: path.to_path_buf(),
+        message,
+    })
 }
 
 /// An indexed triangle mesh stored as flat, `Pod` arrays (castable with `bytemuck`).
@@ -117,6 +158,23 @@ impl TriangleMesh {
     pub fn geometric_normal(&self, k: usize) -> Vec3 {
         let [a, b, c] = self.triangle(k);
         (b - a).cross(c - a)
+    }
+
+    /// Unit geometric normal of triangle `k`. When the f32 cross product's square length is a
+    /// normal number it is normalised in f32 (the bits every valid scene had); when it underflows
+    /// or overflows (a tiny triangle, or one spanning ±1e19) the cross product is taken in f64 and
+    /// scaled by its largest component before normalising, so a huge triangle's normal does not
+    /// overflow to NaN.
+    #[inline]
+    pub fn unit_normal(&self, k: usize) -> Vec3 {
+        let n = self.geometric_normal(k);
+        let l2 = n.length_squared();
+        if l2.is_normal() && l2.is_finite() {
+            return n.normalize();
+        }
+        let [a, b, c] = self.triangle(k).map(|v| v.as_dvec3());
+        let n = (b - a).cross(c - a);
+        (n / n.abs().max_element()).normalize().as_vec3()
     }
 
     /// True when triangle `k` has zero area: its edge cross product, computed in `f64` from the
@@ -187,35 +245,51 @@ impl ObjMesh {
     /// area-weighted ones for models without) and per-face MTL materials (tobj's MTL loader; a
     /// library that cannot be read is an error naming the OBJ file and its `mtllib` line).
     pub fn read_with(path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
-        let text = std::fs::read_to_string(path).map_err(|source| MeshError::Read {
+        let text = crate::input::read_text(path).map_err(|source| MeshError::Read {
             path: path.to_path_buf(),
             source,
         })?;
+        ObjMesh::parse_with(&text, path, what)
+    }
+
+    /// [`ObjMesh::read_with`] of OBJ text already read; `path` names the file in errors and
+    /// anchors its `mtllib` files.
+    pub fn parse_with(text: &str, path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
+        let text = unix_line_ends(text);
+        check_lines(&text, path)?;
         let options = tobj::LoadOptions {
             triangulate: true,
             single_index: true,
             ..Default::default()
         };
         let dir = path.parent().map(Path::to_path_buf).unwrap_or_default();
+        // The first library that cannot be read, with its error (naming the MTL file and line).
+        let library_error = std::cell::RefCell::new(None);
         let loaded = tobj::load_obj_buf(&mut BufReader::new(text.as_bytes()), &options, |lib| {
-            if what.materials {
-                tobj::load_mtl(dir.join(lib))
-            } else {
-                Err(tobj::LoadError::OpenFileFailed)
+            if !what.materials {
+                return Err(tobj::LoadError::OpenFileFailed);
             }
-        });
-        let invalid = |message: &str| {
-            scan_for_error(&text, path).unwrap_or_else(|| MeshError::Obj {
-                path: path.to_path_buf(),
-                message: message.to_string(),
+            crate::scene::mtl::tobj_library(&dir.join(lib)).map_err(|e| {
+                library_error
+                    .borrow_mut()
+                    .get_or_insert_with(|| crate::error::chain(&e));
+                tobj::LoadError::MaterialParseError
             })
+        });
+        let invalid = |message: &str| MeshError::Obj {
+            path: path.to_path_buf(),
+            message: message.to_string(),
         };
         let models = match loaded {
             Ok((models, materials)) => {
                 if what.materials
                     && let Err(e) = materials
                 {
-                    return Err(mtl_error(&text, path, &e.to_string()));
+                    let message = library_error.take().unwrap_or_else(|| e.to_string());
+                    return Err(mtl_error(&text, path, &message));
+                }
+                if let Some(message) = library_error.take() {
+                    return Err(mtl_error(&text, path, &message));
                 }
                 models
             }
@@ -342,70 +416,207 @@ fn mtl_error(text: &str, path: &Path, message: &str) -> MeshError {
     }
 }
 
-/// Scans OBJ text for the first offending `v` or `f` line. Only called after a failure, so it
-/// does not need to be fast, only cheap and panic-free.
-fn scan_for_error(text: &str, path: &Path) -> Option<MeshError> {
-    let mut count: usize = 0;
+/// `text` with every line end as LF: a CR not followed by LF (classic Mac line ends) becomes LF,
+/// so a CR-only file is read line by line instead of as one line.
+pub fn unix_line_ends(text: &str) -> Cow<'_, str> {
+    let b = text.as_bytes();
+    let lone = |i: usize| b[i] == b'\r' && b.get(i + 1) != Some(&b'\n');
+    if !(0..b.len()).any(lone) {
+        return Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len());
+    let mut chars = text.chars().peekable();
+    while let Some(c) = chars.next() {
+        if c == '\r' && chars.peek() != Some(&'\n') {
+            out.push('\n');
+        } else {
+            out.push(c);
+        }
+    }
+    Cow::Owned(out)
+}
+
+/// OBJ statements this reader skips (free-form geometry, display and render attributes).
+const SKIPPED: &[&str] = &[
+    "vp",
+    "cstype",
+    "deg",
+    "bmat",
+    "step",
+    "curv",
+    "curv2",
+    "surf",
+    "parm",
+    "trim",
+    "hole",
+    "scrv",
+    "sp",
+    "end",
+    "con",
+    "mg",
+    "bevel",
+    "c_interp",
+    "d_interp",
+    "lod",
+    "shadow_obj",
+    "trace_obj",
+    "ctech",
+    "stech",
+    "maplib",
+    "usemap",
+    "call",
+    "csh",
+];
+
+/// Checks every line of OBJ text (LF line ends, [`unix_line_ends`]): `v` has 3 to 7 numbers whose
+/// first three are finite and fit an f32; `vt` 1 to 3 numbers, `vn` 3; `f` at least 3 corners, `l`
+/// at least 2 and `p` at least 1, each corner `v`, `v/vt`, `v//vn` or `v/vt/vn` with indices
+/// (1-based, or negative: relative) of elements defined before the line; `o`, `g`, `s`, `mtllib`,
+/// `usemtl`, comments and the free-form statements ([`SKIPPED`]) pass. Anything else is not OBJ:
+/// the error names the file and line. Continuation lines (a trailing `\`) are joined first, as
+/// tobj joins them.
+pub fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {
+    let (mut nv, mut nvt, mut nvn) = (0usize, 0usize, 0usize);
+    let mut joined = String::new();
+    let mut first_line = 0;
     for (i, raw) in text.lines().enumerate() {
-        let line = i + 1;
-        let l = raw.trim();
-        let mut tokens = l.split_whitespace();
+        let line_no = i + 1;
+        if joined.is_empty() {
+            first_line = line_no;
+        }
+        if let Some(head) = raw.strip_suffix('\\') {
+            joined.push_str(head);
+            joined.push(' ');
+            continue;
+        }
+        let l: Cow<str> = if joined.is_empty() {
+            Cow::Borrowed(raw)
+        } else {
+            joined.push_str(raw);
+            Cow::Owned(std::mem::take(&mut joined))
+        };
+        let line = first_line;
         let parse = |message: String| MeshError::Parse {
             path: path.to_path_buf(),
             line,
             message,
         };
-        match tokens.next() {
-            Some("v") => {
-                let coords: Vec<&str> = tokens.take(3).collect();
-                if coords.len() < 3 {
-                    return Some(parse("`v` line needs 3 coordinates".to_string()));
+        let mut words = l.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        if key.starts_with('#') {
+            continue;
+        }
+        let numbers = |words: std::str::SplitWhitespace, lo: usize, hi: usize| {
+            let mut xs = Vec::with_capacity(hi);
+            for w in words {
+                match w.parse::<f64>() {
+                    Ok(x) => xs.push(x),
+                    Err(_) => {
+                        return Err(parse(format!("bad number `{}` in `{key}` line", clip(w))));
+                    }
                 }
-                for c in coords {
-                    match c.parse::<f32>() {
-                        Ok(x) if x.is_finite() => {}
-                        Ok(_) => {
-                            return Some(MeshError::NonFiniteVertex {
-                                path: path.to_path_buf(),
-                                line,
-                            });
+            }
+            if xs.len() < lo || xs.len() > hi {
+                let want = if lo == hi {
+                    format!("{lo}")
+                } else {
+                    format!("{lo} to {hi}")
+                };
+                return Err(parse(format!(
+                    "`{key}` line needs {want} numbers, not {}",
+                    xs.len()
+                )));
+            }
+            Ok(xs)
+        };
+        match key {
+            "v" => {
+                let xs = numbers(words, 3, 7)?;
+                if !xs[..3].iter().all(|&x| (x as f32).is_finite()) {
+                    return Err(MeshError::NonFiniteVertex {
+                        path: path.to_path_buf(),
+                        line,
+                    });
+                }
+                nv += 1;
+            }
+            "vt" => {
+                numbers(words, 1, 3)?;
+                nvt += 1;
+            }
+            "vn" => {
+                numbers(words, 3, 3)?;
+                nvn += 1;
+            }
+            "f" | "l" | "p" => {
+                let mut corners = 0;
+                for w in words {
+                    corners += 1;
+                    let parts: Vec<&str> = w.split('/').collect();
+                    if parts.len() > 3 || parts[0].is_empty() {
+                        return Err(parse(format!("bad corner `{}` in `{key}` line", clip(w))));
+                    }
+                    for (k, part) in parts.iter().enumerate() {
+                        if part.is_empty() {
+                            continue;
                         }
-                        Err(_) => return Some(parse(format!("bad coordinate `{c}`"))),
+                        let (count, what) = [
+                            (nv, "vertices"),
+                            (nvt, "texture coordinates"),
+                            (nvn, "normals"),
+                        ][k];
+                        let index: i64 = part.parse().map_err(|_| {
+                            parse(format!("bad index `{}` in `{key}` line", clip(w)))
+                        })?;
+                        let resolved = if index < 0 {
+                            count as i64 + index
+                        } else {
+                            index - 1
+                        };
+                        if index == 0 || resolved < 0 || resolved >= count as i64 {
+                            if k == 0 {
+                                return Err(MeshError::FaceIndexOutOfRange {
+                                    path: path.to_path_buf(),
+                                    line,
+                                    index,
+                                    count,
+                                });
+                            }
+                            return Err(parse(format!(
+                                "{} index {index} out of range ({count} {what} defined) in `{key}` line",
+                                ["vertex", "texture coordinate", "normal"][k]
+                            )));
+                        }
                     }
                 }
-                count += 1;
-            }
-            Some("f") => {
-                let mut n = 0;
-                for tok in tokens {
-                    n += 1;
-                    let first = tok.split('/').next().unwrap_or("");
-                    let index: i64 = match first.parse() {
-                        Ok(x) => x,
-                        Err(_) => return Some(parse(format!("bad face index `{tok}`"))),
-                    };
-                    let resolved = if index < 0 {
-                        count as i64 + index
-                    } else {
-                        index - 1
-                    };
-                    if index == 0 || resolved < 0 || resolved >= count as i64 {
-                        return Some(MeshError::FaceIndexOutOfRange {
-                            path: path.to_path_buf(),
-                            line,
-                            index,
-                            count,
-                        });
-                    }
-                }
-                if n < 3 {
-                    return Some(parse("`f` line needs at least 3 vertices".to_string()));
+                let least = match key {
+                    "f" => 3,
+                    "l" => 2,
+                    _ => 1,
+                };
+                if corners < least {
+                    return Err(parse(format!(
+                        "`{key}` line needs at least {least} vertices, not {corners}"
+                    )));
                 }
             }
-            _ => {}
+            "o" | "g" | "s" | "mtllib" | "usemtl" => {}
+            _ if SKIPPED.contains(&key) => {}
+            _ => {
+                return Err(parse(format!(
+                    "not an OBJ line (it starts with `{}`): is this an OBJ file?",
+                    clip(key)
+                )));
+            }
         }
     }
-    None
+    Ok(())
+}
+
+/// At most 24 characters of `w`, escaped (words of a binary file quoted in messages).
+fn clip(w: &str) -> String {
+    let s: String = w.chars().take(24).collect();
+    s.escape_debug().to_string()
 }
 
 #[cfg(test)]

@@ -9,8 +9,8 @@
 //! first counts `v` and `vt` lines (so relative indices resolve without a sequential scan), the
 //! second parses; the per-model renumbering is one sequential pass over the corners.
 //!
-//! Anything the fast path does not reproduce exactly — `mtllib`, `usemtl`, `vn` (normals are
-//! tobj's business), `l`, `p`, unknown keywords, `v` with a weight or colours, continuation
+//! Anything the fast path does not reproduce exactly — `mtllib`, `usemtl`, `vn` and normal
+//! indices (normals are tobj's business), index 0, `l`, `p`, unknown keywords, `v` with a weight or colours, continuation
 //! backslashes, non-ASCII bytes, and any malformed line or out-of-range index — sends the whole
 //! file to `tobj`.
 
@@ -65,6 +65,11 @@ pub fn parse(bytes: &[u8]) -> Option<Parsed> {
     // Continuation lines and the one whitespace `split_whitespace` knows but
     // `split_ascii_whitespace` does not (vertical tab) are tobj's business.
     if !bytes.is_ascii() || bytes.iter().any(|&b| b == b'\\' || b == 0x0b) {
+        return None;
+    }
+    // A CR not followed by LF ends a line for the full reader (CR-only files): its business.
+    let lone_cr = |i: usize| bytes[i] == b'\r' && bytes.get(i + 1) != Some(&b'\n');
+    if bytes.contains(&b'\r') && (0..bytes.len()).any(lone_cr) {
         return None;
     }
     let text = std::str::from_utf8(bytes).ok()?;
@@ -172,10 +177,14 @@ fn parse_chunk(text: &str, (mut nv, mut nvt): (usize, usize)) -> Option<Chunk> {
                     for (k, part) in parts.by_ref().take(3).enumerate() {
                         if !part.is_empty() {
                             let x: i64 = part.parse().ok()?;
+                            // Index 0 is never valid; a normal index is tobj's business (the
+                            // fast path takes no `vn` lines, so it cannot be in range).
+                            if x == 0 || k == 2 {
+                                return None;
+                            }
                             corner[k] = match k {
                                 0 => resolve(x, nv),
-                                1 => resolve(x, nvt),
-                                _ => resolve(x, 0),
+                                _ => resolve(x, nvt),
                             };
                         }
                     }
@@ -236,9 +245,7 @@ fn renumber(chunks: &[Chunk], all: &[[f64; 3]], texcoords: usize) -> Option<Pars
             }
             let mut out = [0u32; 3];
             for (o, &(v, vt, vn)) in out.iter_mut().zip(tri) {
-                if v >= all.len() as u64
-                    || (texcoords > 0 && vt != MISSING && vt >= texcoords as u64)
-                {
+                if v >= all.len() as u64 || (vt != MISSING && vt >= texcoords as u64) {
                     return None;
                 }
                 let next = (positions.len() - model_start) as u32;
@@ -306,8 +313,6 @@ mod tests {
         for f in [
             "f 1 2 3\nf 1 3 4\n",
             "f 1/1 2/2 3/3\nf 1/1 3/3 4/1\n",
-            "f 1//1 2//1 3//1\nf 1//2 3//1 4//1\n",
-            "f 1/1/1 2/2/1 3/3/1\nf 1/2/1 3/3/1 4/1/1\n",
             "f -5 -4 -3\nf -5/-3 -3/-1 -2/-2\n",
             "f 1 2 3 4 5\nf 5 4 3 2\n",
             "f 3 2 1\nf 1 2 3\nf 5 1 3\n",
@@ -360,6 +365,10 @@ mod tests {
             "v 0 0 1e39\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",
             "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/2 2/1 3/1\n",
+            // Normal indices (here of normals that do not exist) and index 0 of any kind.
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//1 2//1 3//1\n",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1/1 2/1/1 3/1/1\n",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/0 2/1 3/1\n",
         ] {
             assert!(
                 parse(text.as_bytes()).is_none(),

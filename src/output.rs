@@ -10,9 +10,10 @@
 //! the same encoder and settings, so a streamed render and [`crate::Film::save`] of the same pixels
 //! write the same bytes. PNG text chunks ([`ImageMeta`]) go before the image data.
 //!
-//! Every file is written to `NAME.partial` beside its target and renamed over it only when complete
-//! ([`PartialFile`]); on any error, or when an unfinished stream is dropped, the partial file is
-//! removed, so the target appears complete or not at all.
+//! Every file is written to a unique temporary file beside its target and renamed over it only
+//! when complete ([`PartialFile`]); on any error, when an unfinished stream is dropped, or on a
+//! signal the CLI catches ([`remove_partials`]), the temporary file is removed, so the target
+//! appears complete or not at all. A target that exists and is not a regular file is an error.
 
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
@@ -72,8 +73,59 @@ pub struct ImageMeta {
     pub text: Vec<(String, String)>,
 }
 
-/// A file written under a temporary name beside its target (`NAME.partial`), renamed over the
-/// target by [`PartialFile::commit`] and removed when dropped uncommitted.
+/// Temporary files of this process not yet renamed or removed: what [`remove_partials`] removes
+/// when a signal ends the process.
+static LIVE: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+/// Numbers this process's temporary files, so two of them (two streams to one target) never
+/// share a name.
+static NEXT_TEMP: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Removes every temporary file of this process not yet renamed into place: for a signal handler
+/// (the CLI's, on SIGINT, SIGTERM or SIGHUP) before it ends the process. Old outputs stay intact.
+pub fn remove_partials() {
+    let live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+    for tmp in live.iter() {
+        let _ = std::fs::remove_file(tmp);
+    }
+}
+
+/// `Err` when `target` exists and is not a regular file (a device, a FIFO, a directory, a
+/// socket): only a regular file is ever replaced. A symlink is judged by what it points to.
+fn check_target(target: &Path) -> io::Result<()> {
+    match std::fs::metadata(target) {
+        Ok(m) if m.is_file() => Ok(()),
+        Ok(m) => {
+            use std::os::unix::fs::FileTypeExt;
+            let t = m.file_type();
+            let kind = if t.is_dir() {
+                "a directory"
+            } else if t.is_fifo() {
+                "a FIFO"
+            } else if t.is_char_device() || t.is_block_device() {
+                "a device"
+            } else if t.is_socket() {
+                "a socket"
+            } else {
+                "not a regular file"
+            };
+            Err(io::Error::other(format!(
+                "it exists and is {kind}: only a regular file is replaced"
+            )))
+        }
+        Err(e) if e.kind() == io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(e),
+    }
+}
+
+/// A file written under a unique temporary name in its target's folder
+/// (`.wavefront-PID-N.partial`: hidden, never the target's extension, so a killed process's
+/// leftover is never mistaken for an output), created exclusively (`create_new`: a planted file
+/// or symlink of that name is never opened or followed), renamed over the target by
+/// [`PartialFile::commit`] and removed when dropped uncommitted, or by [`remove_partials`].
+///
+/// The target must be absent or a regular file, checked at creation and again before the
+/// rename; anything else (a device, a FIFO, a directory) is an error and is never replaced.
 #[derive(Debug)]
 pub struct PartialFile {
     /// The temporary file.
@@ -85,25 +137,56 @@ pub struct PartialFile {
 }
 
 impl PartialFile {
-    /// Creates (or truncates) `target.partial` and returns its guard and the open file.
+    /// Creates a new temporary file beside `target` and returns its guard and the open file.
     pub fn create(target: &Path) -> io::Result<(PartialFile, File)> {
-        let mut name = target.file_name().unwrap_or_default().to_os_string();
-        name.push(".partial");
-        let tmp = target.with_file_name(name);
-        let file = File::create(&tmp)?;
-        let guard = PartialFile {
-            tmp,
-            target: target.to_path_buf(),
-            committed: false,
+        check_target(target)?;
+        let dir = match target.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
         };
-        Ok((guard, file))
+        let pid = std::process::id();
+        let mut tries = 0;
+        loop {
+            let n = NEXT_TEMP.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            let tmp = dir.join(format!(".wavefront-{pid}-{n}.partial"));
+            match std::fs::OpenOptions::new()
+                .write(true)
+                .create_new(true)
+                .open(&tmp)
+            {
+                Ok(file) => {
+                    LIVE.lock()
+                        .unwrap_or_else(|e| e.into_inner())
+                        .push(tmp.clone());
+                    let guard = PartialFile {
+                        tmp,
+                        target: target.to_path_buf(),
+                        committed: false,
+                    };
+                    return Ok((guard, file));
+                }
+                // A leftover of an earlier process with this id, or a planted name: next one.
+                Err(e) if e.kind() == io::ErrorKind::AlreadyExists && tries < 100 => tries += 1,
+                Err(e) => return Err(e),
+            }
+        }
     }
 
-    /// Renames the complete file over its target (removing it if the rename fails).
+    /// Renames the complete file over its target (the temporary file is removed if that fails).
     pub fn commit(mut self) -> io::Result<()> {
+        check_target(&self.target)?;
         std::fs::rename(&self.tmp, &self.target)?;
         self.committed = true;
+        self.forget();
         Ok(())
+    }
+
+    /// Takes the temporary file off the list [`remove_partials`] removes.
+    fn forget(&self) {
+        let mut live = LIVE.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(i) = live.iter().position(|p| p == &self.tmp) {
+            live.swap_remove(i);
+        }
     }
 }
 
@@ -111,6 +194,7 @@ impl Drop for PartialFile {
     fn drop(&mut self) {
         if !self.committed {
             let _ = std::fs::remove_file(&self.tmp);
+            self.forget();
         }
     }
 }
@@ -437,10 +521,16 @@ pub fn write_exr_with(
         };
         attributes.other.insert(k, AttributeValue::Text(v));
     }
+    // Increasing-Y line order and a fixed compression: the same pixels give the same bytes
+    // whatever the thread count (SPEC §13; `FAST_LOSSLESS` leaves the order unspecified).
+    let encoding = Encoding {
+        line_order: exr::prelude::LineOrder::Increasing,
+        ..Encoding::FAST_LOSSLESS
+    };
     let layer = Layer::new(
         (width, film.height as usize),
         attributes,
-        Encoding::FAST_LOSSLESS,
+        encoding,
         SpecificChannels::rgb(pixels),
     );
     let mut bytes = std::io::Cursor::new(Vec::new());

@@ -11,7 +11,7 @@ use crate::frame::{Light, Plane, RenderFrame, Sphere};
 use crate::geometry::offset::{gamma, offset_fixed, offset_ray_origin};
 use crate::geometry::{plane, sphere, triangle};
 use crate::mesh::TriangleMesh;
-use crate::mesh::{NO_MATERIAL, ObjMesh, ObjRead};
+use crate::mesh::{MeshError, NO_MATERIAL, ObjMesh, ObjRead};
 use crate::queue::PrimId;
 use crate::scene::{Material, Normals, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
 
@@ -520,7 +520,7 @@ impl World {
                     .triangles
                     .as_ref()
                     .expect("triangle id without triangles");
-                let n = tris.mesh.geometric_normal(k).normalize();
+                let n = tris.mesh.unit_normal(k);
                 let (p, error, b) = triangle::hit_point(o, d, tris.mesh.triangle(k))
                     .unwrap_or_else(|| (p, gamma(8) * (o.abs() + (t * d).abs()), [1.0, 0.0, 0.0]));
                 shading = tris.shading_normal(k, b);
@@ -559,14 +559,13 @@ fn load_triangles(
     let smooth = scene.meshes.iter().any(|m| m.normals == Normals::Vertex);
     let mut vertex_normals = vec![];
     for m in &scene.meshes {
-        if !m.path.exists() {
-            return Err(crate::scene::builtin::missing_mesh(&m.path).into());
-        }
+        check_mesh_path(scene, m)?;
         let what = ObjRead {
             normals: m.normals == Normals::Vertex,
             materials: m.mtl.is_some(),
         };
         let obj = ObjMesh::read_with(&m.path, what)?;
+        check_not_empty(m, &obj)?;
         let part = obj.to_frame(frame.origin)?;
         world_positions.extend_from_slice(&obj.positions);
         let first = mesh.len() as u32;
@@ -624,6 +623,25 @@ fn load_triangles(
         source,
     };
     Ok((triangles, times))
+}
+
+/// Before a mesh is read: it is there ([`crate::scene::builtin::missing_scene_mesh`]) and its
+/// extension names a format this build reads.
+fn check_mesh_path(scene: &Scene, m: &crate::scene::MeshRef) -> Result<(), LoadError> {
+    if crate::input::is_absent(&m.path) {
+        return Err(crate::scene::builtin::missing_scene_mesh(scene, &m.path).into());
+    }
+    Ok(crate::mesh::check_format(&m.path)?)
+}
+
+/// After a mesh is read: it has triangles, unless its `[[mesh]]` says `allow_empty = true`.
+fn check_not_empty(m: &crate::scene::MeshRef, obj: &ObjMesh) -> Result<(), MeshError> {
+    if obj.is_empty() && !m.allow_empty {
+        return Err(MeshError::Empty {
+            path: m.path.clone(),
+        });
+    }
+    Ok(())
 }
 
 /// One tree covers all meshes: a tree file only makes sense for a single mesh.

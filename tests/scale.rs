@@ -118,6 +118,7 @@ fn cornell(dir: &Scratch, delta: DVec3) -> Scene {
                 kdtree: TreeSource::Sah,
                 normals: Default::default(),
                 mtl: None,
+                allow_empty: false,
             }
         })
         .collect();
@@ -315,6 +316,7 @@ fn thin_geometry_never_leaks_light() {
                 kdtree: TreeSource::Sah,
                 normals: Default::default(),
                 mtl: None,
+                allow_empty: false,
             })
             .collect();
         s.lights = vec![PointLight {

@@ -253,6 +253,7 @@ fn secondary_rays_leaving_triangles_far_out_never_rehit_them() {
             kdtree: TreeSource::Sah,
             normals: Default::default(),
             mtl: None,
+            allow_empty: false,
         }];
         let world = World::with_mesh(&scene, &mesh, BuildMethod::Sah);
         let mut rng = Rng(7 + scale.to_bits() as u64);
@@ -329,6 +330,7 @@ fn no_light_leaks_into_a_closed_thin_walled_box() {
                 kdtree: TreeSource::Sah,
                 normals: Default::default(),
                 mtl: None,
+                allow_empty: false,
             }];
             scene.render.shadows = true;
             scene.render.max_depth = 0;

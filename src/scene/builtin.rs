@@ -185,6 +185,7 @@ pub fn sibenik(shadows: bool) -> Scene {
             kdtree: TreeSource::Sah,
             normals: Default::default(),
             mtl: None,
+            allow_empty: false,
         }],
     }
 }
@@ -204,9 +205,23 @@ pub fn sibenik_mesh_path_in(root: &Path) -> PathBuf {
     }
 }
 
-/// The error for a mesh file that is not there, saying where to put it.
+/// The error for a mesh file that is not there; for the Sibenik mesh (a file named `sibenik.obj`)
+/// it says where to put it.
 pub fn missing_mesh(path: &Path) -> SceneError {
     SceneError::MissingMesh {
         path: path.to_path_buf(),
+        sibenik: path.file_name().is_some_and(|n| n == "sibenik.obj"),
+    }
+}
+
+/// [`missing_mesh`] for a mesh of `scene`: a built-in Sibenik scene's mesh says where to put it
+/// whatever its name (it may come from `--mesh`).
+pub fn missing_scene_mesh(scene: &Scene, path: &Path) -> SceneError {
+    match missing_mesh(path) {
+        SceneError::MissingMesh { path, sibenik } => SceneError::MissingMesh {
+            path,
+            sibenik: sibenik || matches!(scene.name.as_str(), "sibenik" | "sibenik-shadows"),
+        },
+        e => e,
     }
 }

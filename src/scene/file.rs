@@ -20,7 +20,7 @@ use super::{
     Camera, CameraPath, ImageSettings, Material, MeshRef, Normals, OffsetMethod, Plane, PointLight,
     RenderMode, RenderSettings, Robustness, Scene, Sphere, SphereTest, TreeSource, TriangleTest,
 };
-use crate::error::SceneError;
+use crate::error::{SceneError, short};
 
 /// Largest accepted image side, samples per pixel and depth.
 pub const MAX_IMAGE_SIDE: u32 = 1 << 15;
@@ -37,7 +37,41 @@ const _: () = assert!(
     (MAX_IMAGE_SIDE as u128 * MAX_IMAGE_SIDE as u128 * MAX_SAMPLES as u128) <= u64::MAX as u128
 );
 
-type V3 = Spanned<[f64; 3]>;
+type V3 = Spanned<Arr3>;
+
+/// Exactly three numbers: a longer or shorter array is an error at its line, never truncated.
+#[derive(Clone, Copy, Debug)]
+struct Arr3([f64; 3]);
+
+impl<'de> Deserialize<'de> for Arr3 {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Arr3, D::Error> {
+        use serde::de::{Error, IgnoredAny, SeqAccess, Visitor};
+        struct Three;
+        impl<'de> Visitor<'de> for Three {
+            type Value = Arr3;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("an array of 3 numbers")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Arr3, A::Error> {
+                let mut out = [0.0; 3];
+                for (i, o) in out.iter_mut().enumerate() {
+                    *o = seq
+                        .next_element::<f64>()?
+                        .ok_or_else(|| A::Error::invalid_length(i, &self))?;
+                }
+                let mut n = 3;
+                while seq.next_element::<IgnoredAny>()?.is_some() {
+                    n += 1;
+                }
+                if n > 3 {
+                    return Err(A::Error::invalid_length(n, &self));
+                }
+                Ok(Arr3(out))
+            }
+        }
+        d.deserialize_seq(Three)
+    }
+}
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -173,14 +207,17 @@ struct RawMesh {
     fallback_material: Option<Spanned<String>>,
     normals: Option<Spanned<String>>,
     kdtree: Option<Spanned<String>>,
+    allow_empty: Option<bool>,
 }
 
-/// Reads and validates the scene file at `path`.
+/// Reads and validates the scene file at `path` (a regular file of at most
+/// [`crate::input::SCENE_CAP`] bytes).
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        file: path.to_path_buf(),
-        source,
-    })?;
+    let text = crate::input::read_text_capped(path, crate::input::SCENE_CAP, "scene files")
+        .map_err(|source| SceneError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
     parse(&text, path)
 }
 
@@ -253,6 +290,7 @@ impl Cx<'_> {
             return Err(self.err(v.span(), key, format!("{x} is not a finite number")));
         }
         if x.abs() > f32::MAX as f64 {
+            let x = short(x);
             return Err(self.err(v.span(), key, format!("{x} does not fit a 32-bit float")));
         }
         Ok(x as f32)
@@ -265,17 +303,18 @@ impl Cx<'_> {
 
     /// A finite 3-vector kept in f64 (each component must still fit an f32).
     fn dvec3(&self, v: &V3, key: &str) -> Result<DVec3, SceneError> {
-        self.vec3(v, key).map(|_| DVec3::from(*v.get_ref()))
+        self.vec3(v, key).map(|_| DVec3::from(v.get_ref().0))
     }
 
     fn vec3(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
-        let a = v.get_ref();
+        let a = v.get_ref().0;
         let mut out = [0.0f32; 3];
-        for (o, &x) in out.iter_mut().zip(a) {
+        for (o, &x) in out.iter_mut().zip(&a) {
             if !x.is_finite() {
                 return Err(self.err(v.span(), key, format!("{x} is not a finite number")));
             }
             if x.abs() > f32::MAX as f64 {
+                let x = short(x);
                 return Err(self.err(v.span(), key, format!("{x} does not fit a 32-bit float")));
             }
             *o = x as f32;
@@ -287,7 +326,7 @@ impl Cx<'_> {
     /// it by [`crate::world::World`]).
     fn position(&self, v: &V3, key: &str) -> Result<DVec3, SceneError> {
         self.vec3(v, key)?; // the same checks: finite, within f32 range
-        Ok(DVec3::from_array(*v.get_ref()))
+        Ok(DVec3::from_array(v.get_ref().0))
     }
 
     fn direction(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
@@ -300,6 +339,23 @@ impl Cx<'_> {
             ));
         }
         Ok(d)
+    }
+
+    /// A unit direction from any non-zero finite vector. A vector whose f32 square length is a
+    /// normal number is normalised in f32 as always (the same bits as before); a tiny or huge one
+    /// is scaled by its largest component and normalised in f64 first, so it neither underflows
+    /// to a zero length nor overflows to an infinite one.
+    fn unit(&self, v: &V3, key: &str) -> Result<Vec3, SceneError> {
+        let d = self.vec3(v, key)?;
+        if d == Vec3::ZERO {
+            return Err(self.err(v.span(), key, "must be a non-zero vector"));
+        }
+        let l2 = d.length_squared();
+        if l2.is_normal() && l2.is_finite() {
+            return Ok(d.normalize());
+        }
+        let d = d.as_dvec3();
+        Ok((d / d.abs().max_element()).normalize().as_vec3())
     }
 
     fn colour(&self, v: Option<&V3>, key: &str, default: Vec3) -> Result<Vec3, SceneError> {
@@ -431,9 +487,7 @@ impl Cx<'_> {
         for (i, p) in raw.plane.iter().enumerate() {
             planes.push(Plane {
                 point: self.position(&p.point, &format!("plane[{i}].point"))?,
-                normal: self
-                    .direction(&p.normal, &format!("plane[{i}].normal"))?
-                    .normalize(),
+                normal: self.unit(&p.normal, &format!("plane[{i}].normal"))?,
                 material: find(&p.material, format!("plane[{i}].material"))?,
             });
         }
@@ -443,7 +497,11 @@ impl Cx<'_> {
             let key = format!("sphere[{i}].radius");
             let radius = self.float(&s.radius, &key)?;
             if radius <= 0.0 {
-                return Err(self.err(s.radius.span(), key, format!("{radius} must be > 0")));
+                return Err(self.err(
+                    s.radius.span(),
+                    key,
+                    format!("{} must be > 0", short(radius as f64)),
+                ));
             }
             spheres.push(Sphere {
                 center: self.position(&s.center, &format!("sphere[{i}].center"))?,
@@ -506,6 +564,7 @@ impl Cx<'_> {
                 kdtree,
                 normals,
                 mtl,
+                allow_empty: m.allow_empty.unwrap_or(false),
             });
         }
 

@@ -125,6 +125,7 @@ pub fn bare_mesh(path: &Path, (width, height): (u32, u32)) -> Result<Scene, Load
             kdtree: TreeSource::Sah,
             normals: Default::default(),
             mtl: None,
+            allow_empty: false,
         }],
     })
 }

@@ -222,6 +222,8 @@ pub struct MeshRef {
     pub normals: Normals,
     /// Per-face materials from the OBJ's MTL libraries (`material = "mtl"`).
     pub mtl: Option<mtl::MtlBinding>,
+    /// The mesh may have no triangles (`allow_empty = true`); otherwise that is an error.
+    pub allow_empty: bool,
 }
 
 /// Which normal shades a mesh (SPEC §12).

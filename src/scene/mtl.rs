@@ -1,7 +1,9 @@
 //! Materials from an OBJ's MTL libraries (SPEC §12): `[[mesh]] material = "mtl"`.
 //!
 //! At scene load the OBJ's `mtllib`, `usemtl` and `f` lines are scanned, its libraries read with
-//! tobj's MTL loader, and every library material appended to the scene's materials — so the
+//! [`read_library`] (this crate's MTL reader, strict: a value that is not a finite, non-negative
+//! number is an error naming the MTL file and line, as in a scene file; a colour with one or two
+//! components takes g and b from r, as MTL says), and every library material appended to the scene's materials — so the
 //! pipeline knows before any geometry is loaded which materials the mesh uses (no reflect stage
 //! when no face reflects). `Ka`, `Kd`, `Ks`, `Ns` become `ka`, `kd`, `ks`, `p` (defaults 0, 0.8,
 //! 0, 0); the mirror weight is the mean of `Ks` for `illum` 3, 5 or 7 and 0 otherwise. A library
@@ -14,7 +16,8 @@ use std::path::Path;
 use glam::Vec3;
 
 use super::Material;
-use crate::error::SceneError;
+use crate::error::{SceneError, short};
+use crate::input::{MTL_CAP, read_text_capped};
 
 /// How a mesh's faces get their materials from its MTL libraries.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -63,7 +66,7 @@ pub fn bind(
     base: u32,
     materials: &mut Vec<Material>,
 ) -> Result<MtlBinding, SceneError> {
-    let text = std::fs::read_to_string(obj).map_err(|source| SceneError::Io {
+    let text = crate::input::read_text(obj).map_err(|source| SceneError::MeshIo {
         file: obj.to_path_buf(),
         source,
     })?;
@@ -85,12 +88,16 @@ pub fn bind(
         match tokens.next() {
             Some("mtllib") => {
                 for lib in tokens {
-                    let (lib_materials, _) = tobj::load_mtl(dir.join(lib)).map_err(|e| {
-                        invalid(
+                    let lib_materials = read_library(&dir.join(lib)).map_err(|e| match e {
+                        SceneError::MeshIo { source, .. } => invalid(
                             line,
                             "mtllib",
-                            format!("cannot read material library {lib}: {e}"),
-                        )
+                            format!(
+                                "cannot read material library {lib}: {}",
+                                crate::error::chain(&source)
+                            ),
+                        ),
+                        e => e,
                     })?;
                     for m in &lib_materials {
                         names.insert(m.name.clone(), index(materials));
@@ -134,4 +141,160 @@ pub fn bind(
         fallback,
         used,
     })
+}
+
+/// Reads the MTL library at `path` (a regular file of at most [`MTL_CAP`] bytes): its materials
+/// in file order, as tobj's `Material` (name, `Ka`, `Kd`, `Ks`, `Ns`, `illum`). Colours take one
+/// to three components (g and b default to r); every number must be finite, non-negative and fit
+/// an f32; `illum` is an integer 0–10; texture maps and other known statements are skipped; a
+/// statement before any `newmtl`, an unknown keyword, or a spectral or CIE XYZ colour is an error
+/// naming the file and line. A file that cannot be read is [`SceneError::MeshIo`].
+pub fn read_library(path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
+    let text =
+        read_text_capped(path, MTL_CAP, "MTL files").map_err(|source| SceneError::MeshIo {
+            file: path.to_path_buf(),
+            source,
+        })?;
+    parse_library(&text, path)
+}
+
+/// [`read_library`] of MTL text already read; `path` names the file in errors.
+pub fn parse_library(text: &str, path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
+    let mut out: Vec<tobj::Material> = vec![];
+    for (i, raw) in text.lines().enumerate() {
+        let line = i + 1;
+        let invalid = |key: &str, message: String| SceneError::Invalid {
+            file: path.to_path_buf(),
+            line,
+            key: key.into(),
+            message,
+        };
+        let l = raw.trim();
+        let mut words = l.split_whitespace();
+        let Some(key) = words.next() else { continue };
+        if key.starts_with('#') {
+            continue;
+        }
+        if key == "newmtl" {
+            let name = l[6..].trim();
+            if name.is_empty() {
+                return Err(invalid(key, "needs a material name".into()));
+            }
+            out.push(tobj::Material {
+                name: name.to_owned(),
+                ..tobj::Material::default()
+            });
+            continue;
+        }
+        let number = |w: &str| -> Result<f64, SceneError> {
+            let x: f64 = w
+                .parse()
+                .map_err(|_| invalid(key, format!("`{}` is not a number", clip(w))))?;
+            if !x.is_finite() {
+                return Err(invalid(key, format!("{x} is not a finite number")));
+            }
+            if x.abs() > f32::MAX as f64 {
+                return Err(invalid(
+                    key,
+                    format!("{} does not fit a 32-bit float", short(x)),
+                ));
+            }
+            if x < 0.0 {
+                return Err(invalid(key, format!("{} must be ≥ 0", short(x))));
+            }
+            Ok(x)
+        };
+        let words: Vec<&str> = words.collect();
+        let colour = || -> Result<[f64; 3], SceneError> {
+            if matches!(words.first(), Some(&("spectral" | "xyz"))) {
+                return Err(invalid(
+                    key,
+                    format!("{} colours are not supported (give r g b)", words[0]),
+                ));
+            }
+            if words.is_empty() || words.len() > 3 {
+                return Err(invalid(
+                    key,
+                    format!("needs 1 to 3 components, not {}", words.len()),
+                ));
+            }
+            let r = number(words[0])?;
+            let g = words.get(1).map_or(Ok(r), |w| number(w))?;
+            let b = words.get(2).map_or(Ok(r), |w| number(w))?;
+            Ok([r, g, b])
+        };
+        let scalar = || -> Result<f64, SceneError> {
+            match words.as_slice() {
+                [w] => number(w),
+                _ => Err(invalid(
+                    key,
+                    format!("needs one number, not {}", words.len()),
+                )),
+            }
+        };
+        let textures = key.starts_with("map_")
+            || matches!(
+                key,
+                "bump" | "disp" | "decal" | "refl" | "norm" | "sharpness"
+            );
+        let Some(m) = out.last_mut() else {
+            return Err(invalid(key, "comes before any newmtl".into()));
+        };
+        match key {
+            "Ka" => m.ambient = Some(colour()?),
+            "Kd" => m.diffuse = Some(colour()?),
+            "Ks" => m.specular = Some(colour()?),
+            "Ke" => m.emissive = Some(colour()?),
+            "Tf" => {
+                colour()?;
+            }
+            "Ns" => m.shininess = Some(scalar()?),
+            "d" => m.dissolve = Some(scalar()?),
+            "Ni" => m.optical_density = Some(scalar()?),
+            "Tr" | "Pr" | "Pm" | "Ps" | "Pc" | "Pcr" | "aniso" | "anisor" => {
+                scalar()?;
+            }
+            "illum" => match words.as_slice() {
+                [w] => match w.parse::<u8>() {
+                    Ok(x) if x <= 10 => m.illumination_model = Some(x),
+                    _ => {
+                        return Err(invalid(
+                            key,
+                            format!("`{}` is not an illumination model 0–10", clip(w)),
+                        ));
+                    }
+                },
+                _ => return Err(invalid(key, "needs one integer 0–10".into())),
+            },
+            _ if textures => {}
+            _ => {
+                return Err(invalid(
+                    &clip(key),
+                    "not an MTL statement (is this an MTL file?)".into(),
+                ));
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// [`read_library`] in the form tobj's OBJ loader takes: the materials and their indices by name
+/// (a later material of the same name wins, as in tobj).
+pub fn tobj_library(path: &Path) -> Result<MtlLibrary, SceneError> {
+    let materials = read_library(path)?;
+    let names = materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| (m.name.clone(), i))
+        .collect();
+    Ok((materials, names))
+}
+
+/// What tobj's OBJ loader takes from a material library.
+pub type MtlLibrary = (Vec<tobj::Material>, HashMap<String, usize>);
+
+/// At most 24 characters of `w`, escaped: words of a binary file quoted in messages.
+fn clip(w: &str) -> String {
+    let s: String = w.chars().take(24).collect();
+    s.escape_debug().to_string()
 }

@@ -10,7 +10,9 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::{SetupTimes, Triangles, World, load_triangles, tree_source};
+use super::{
+    SetupTimes, Triangles, World, check_mesh_path, check_not_empty, load_triangles, tree_source,
+};
 use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
 use crate::cache::{CacheKey, CachedTree, TreeCache};
 use crate::error::LoadError;
@@ -74,9 +76,7 @@ impl World {
         let start = Instant::now();
         let mut files = Vec::with_capacity(scene.meshes.len());
         for m in &scene.meshes {
-            if !m.path.exists() {
-                return Err(crate::scene::builtin::missing_mesh(&m.path).into());
-            }
+            check_mesh_path(scene, m)?;
             let bytes = crate::cache::read_parallel(&m.path).map_err(|source| MeshError::Read {
                 path: m.path.clone(),
                 source,
@@ -145,6 +145,7 @@ fn merge(scene: &Scene, files: &[Vec<u8>]) -> Result<(ObjMesh, Vec<u64>), LoadEr
     let mut counts = Vec::with_capacity(files.len());
     for (m, bytes) in scene.meshes.iter().zip(files) {
         let obj = crate::obj_fast::read_bytes(&m.path, bytes)?;
+        check_not_empty(m, &obj)?;
         let base = merged.positions.len() as u32;
         merged.positions.extend_from_slice(&obj.positions);
         merged

@@ -328,10 +328,21 @@ impl KdTree {
         triangle_count: usize,
         frame: &RenderFrame,
     ) -> Result<KdTree, TreeError> {
-        let file = std::fs::File::open(path).map_err(|source| TreeError::Io {
+        // A regular file only (a FIFO would block), of at most `TREE_CAP` bytes.
+        let io = |source| TreeError::Io {
             path: path.to_path_buf(),
             source,
-        })?;
+        };
+        let (file, len) = crate::input::open_regular(path).map_err(io)?;
+        let cap = crate::input::TREE_CAP;
+        if len > cap {
+            return Err(io(std::io::Error::other(format!(
+                "is {}; tree files are capped at {}",
+                crate::input::size(len),
+                crate::input::size(cap)
+            ))));
+        }
+        let file = std::io::Read::take(file, cap);
         KdTree::read_text_in(std::io::BufReader::new(file), path, triangle_count, frame)
     }
 

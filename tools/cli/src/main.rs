@@ -153,7 +153,7 @@ struct SceneArgs {
     #[arg(long)]
     depth: Option<u32>,
     /// Trace shadow rays.
-    #[arg(long, overrides_with = "no_shadows")]
+    #[arg(long, conflicts_with = "no_shadows")]
     shadows: bool,
     /// Do not trace shadow rays.
     #[arg(long)]
@@ -240,7 +240,69 @@ enum KdtreeCommand {
     },
 }
 
+/// Most worker threads `--threads` takes: more is a typo, not a machine (rayon would spend
+/// seconds starting them before failing).
+const MAX_THREADS: usize = 1024;
+
+/// `--threads N`, checked: 1 to [`MAX_THREADS`].
+fn check_threads(threads: Option<usize>) -> Result<Option<usize>> {
+    match threads {
+        Some(n) if !(1..=MAX_THREADS).contains(&n) => {
+            bail!("invalid setting --threads: {n} is out of range 1..={MAX_THREADS}")
+        }
+        t => Ok(t),
+    }
+}
+
+/// Memory a wave takes per sample, rounded up from a measurement (`--wave-samples 16777216`
+/// peaked at 3.7 GB: 220 bytes a sample, for the ray, hit and shadow queues and the sample
+/// buffer).
+const WAVE_BYTES_PER_SAMPLE: u64 = 256;
+
+/// Memory an EXR output takes per pixel: the film (12 bytes of linear RGB), the encoder's copy and
+/// its compressed blocks (12 each), and slack.
+const EXR_BYTES_PER_PIXEL: u64 = 48;
+
+/// The memory this machine has available (`MemAvailable` of `/proc/meminfo`), if known.
+fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuses a setting whose memory (`bytes`, estimated before anything is allocated) exceeds what
+/// the machine has available, saying how much and why; no check where that is not known.
+fn check_memory(setting: &str, what: &str, bytes: u64) -> Result<()> {
+    if let Some(available) = available_memory()
+        && bytes > available
+    {
+        bail!(
+            "invalid setting {setting}: {what} needs about {} of memory, more than the {} available",
+            wavefront::input::size(bytes),
+            wavefront::input::size(available)
+        );
+    }
+    Ok(())
+}
+
+/// On SIGINT, SIGTERM or SIGHUP: remove this process's temporary output files (old outputs stay
+/// intact) and end with the shell's code for the signal (128 + its number).
+fn remove_partials_on_signals() {
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM, SIGHUP]) else {
+        return; // without a handler, the default action ends the process as before
+    };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            wavefront::output::remove_partials();
+            std::process::exit(128 + signal);
+        }
+    });
+}
+
 fn main() -> ExitCode {
+    remove_partials_on_signals();
     let cli = Cli::parse();
     // No subcommand: render the default scene, as `wavefront render` does.
     let command = cli
@@ -333,10 +395,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     }
     let jobs = plan::RenderPlan::new(&scene, &args.part, &args.output, |v| std::env::var(v).ok())?;
     let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = args.threads {
-        if n == 0 {
-            bail!("invalid setting --threads: must be at least 1");
-        }
+    if let Some(n) = check_threads(args.threads)? {
         builder = builder.num_threads(n);
     }
     if !(1..=MAX_WAVE_SAMPLES).contains(&args.wave_samples) {
@@ -344,6 +403,22 @@ fn run_render(args: RenderArgs) -> Result<()> {
             "invalid setting --wave-samples: {} is out of range 1..={MAX_WAVE_SAMPLES}",
             args.wave_samples
         );
+    }
+    check_memory(
+        "--wave-samples",
+        &format!("{} samples a wave", args.wave_samples),
+        args.wave_samples as u64 * WAVE_BYTES_PER_SAMPLE,
+    )?;
+    if exr {
+        let pixels = scene.image.pixel_count();
+        check_memory(
+            &args.output.display().to_string(),
+            &format!(
+                "a {}x{} EXR (written from the whole image in memory)",
+                scene.image.width, scene.image.height
+            ),
+            pixels * EXR_BYTES_PER_PIXEL,
+        )?;
     }
     let pool = builder.build().context("cannot start the thread pool")?;
     let options = RenderOptions {
@@ -447,7 +522,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
                 }
             };
             bar.finish();
-            if jobs.announce {
+            if jobs.announce && !args.quiet {
                 println!("wrote {}", job.output.display());
             }
             let image = &job.scene.image;
@@ -490,8 +565,10 @@ fn run_bench(args: &BenchArgs) -> Result<()> {
         ..Overrides::default()
     }
     .apply(&mut scene)?;
-    let threads = match args.threads {
-        Some(0) => bail!("invalid setting --threads: must be at least 1"),
+    if args.repeat == 0 {
+        bail!("invalid setting --repeat: must be at least 1");
+    }
+    let threads = match check_threads(args.threads)? {
         Some(n) => n,
         None => std::thread::available_parallelism().map_or(1, |n| n.get()),
     };
@@ -550,9 +627,10 @@ fn run_report(args: &ReportArgs) -> Result<()> {
 /// Reads an OBJ mesh in f64 and moves it into the frame centred on its bounds, where a tree is
 /// built with the most precision; tree files still hold world coordinates.
 fn load_mesh(path: &Path) -> Result<(TriangleMesh, RenderFrame)> {
-    if !path.exists() {
+    if wavefront::input::is_absent(path) {
         return Err(wavefront::scene::builtin::missing_mesh(path).into());
     }
+    wavefront::mesh::check_format(path)?;
     let obj = ObjMesh::read(path)?;
     let frame = RenderFrame::centered_on(&obj);
     Ok((obj.to_frame(frame.origin)?, frame))
@@ -561,10 +639,7 @@ fn load_mesh(path: &Path) -> Result<(TriangleMesh, RenderFrame)> {
 /// A rayon pool of `threads` threads (all cores when `None`); 0 is an error.
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut builder = rayon::ThreadPoolBuilder::new();
-    if let Some(n) = threads {
-        if n == 0 {
-            bail!("invalid setting --threads: must be at least 1");
-        }
+    if let Some(n) = check_threads(threads)? {
         builder = builder.num_threads(n);
     }
     builder.build().context("cannot start the thread pool")
@@ -579,11 +654,13 @@ fn build_tree(
     json: bool,
     cache: &CacheArgs,
 ) -> Result<()> {
-    if !mesh.exists() {
+    if wavefront::input::is_absent(mesh) {
         return Err(wavefront::scene::builtin::missing_mesh(mesh).into());
     }
+    wavefront::mesh::check_format(mesh)?;
     let start = Instant::now();
-    let bytes = std::fs::read(mesh).with_context(|| format!("cannot read {}", mesh.display()))?;
+    let bytes = wavefront::cache::read_parallel(mesh)
+        .with_context(|| format!("cannot read mesh file {}", mesh.display()))?;
     let obj = wavefront::obj_fast::read_bytes(mesh, &bytes)?;
     let load = start.elapsed().as_secs_f64();
     let frame = RenderFrame::centered_on(&obj);

@@ -697,6 +697,7 @@ mod tests {
             kdtree: wavefront::scene::TreeSource::Sah,
             normals: Default::default(),
             mtl: None,
+            allow_empty: false,
         }];
         let mesh = ObjMesh {
             positions: vec![[-1.0, -1.0, -3.0], [1.0, -1.0, -3.0], [0.0, 1.0, -3.0]],
