@@ -472,7 +472,7 @@ const SKIPPED: &[&str] = &[
 /// first three are finite and fit an f32; `vt` 1 to 3 numbers, `vn` 3; `f` at least 3 corners, `l`
 /// at least 2 and `p` at least 1, each corner `v`, `v/vt`, `v//vn` or `v/vt/vn` with indices
 /// (1-based, or negative: relative) of elements defined before the line; `o`, `g`, `s`, `mtllib`,
-/// `usemtl`, comments and the free-form statements ([`SKIPPED`]) pass. Anything else is not OBJ:
+/// `usemtl`, comments and the free-form statements (`SKIPPED`) pass. Anything else is not OBJ:
 /// the error names the file and line. Continuation lines (a trailing `\`) are joined first, as
 /// tobj joins them.
 pub fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {

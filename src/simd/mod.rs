@@ -9,7 +9,7 @@
 //!   AVX2 and AVX-512). The portable path (SSE2 on `x86_64`) is always there.
 //! - **Explicit lanes** (`F32x4`, `M32x4`): four `f32` lanes with exactly the semantics of
 //!   SSE2 instructions, for the kD tree's packet traversal (`x4`); 8 or 16 lanes behind one
-//!   trait ([`Wide`], `wide`) for its frusta and light-rooted bundles.
+//!   trait (`Wide`, `wide`) for its frusta and light-rooted bundles.
 //!
 //! Determinism: every path performs the same IEEE operations in the same order on each lane —
 //! Rust never contracts `a * b + c` into a fused multiply-add, and enabling the `fma` feature
