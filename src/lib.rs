@@ -75,68 +75,37 @@ pub fn load_scene(name_or_path: &str) -> Result<Scene, error::LoadError> {
 
 /// [`load_scene`] with command-line settings (`--set`, `--size`, SPEC §16) applied: to a scene
 /// file's own keys ([`scene::set::load_with`]); to a built-in or a bare mesh only
-/// `image.width` and `image.height` (a bare mesh is framed for the new size).
+/// `image.width` and `image.height` ([`scene::set::image_size`]; a bare mesh is framed for it).
 pub fn load_scene_with(
     name_or_path: &str,
     settings: &[scene::set::Setting],
 ) -> Result<Scene, error::LoadError> {
     let path = std::path::Path::new(name_or_path);
-    let file = scene::builtin::builtin(name_or_path).is_none()
-        && path.exists()
-        && !scene::framing::is_mesh_path(path);
-    if file {
-        return Ok(scene::set::load_with(path, settings)?);
-    }
-    let mut size = (512, 512);
-    for s in settings {
-        let (side, n) = match (s.key.as_str(), s.value.as_integer()) {
-            ("image.width", Some(n)) => (&mut size.0, n),
-            ("image.height", Some(n)) => (&mut size.1, n),
-            _ => {
-                return Err(error::SceneError::Setting {
-                    key: s.arg.clone(),
-                    message: format!(
-                        "{name_or_path} is not a scene file: only --size (image.width, \
-                         image.height) applies to it"
-                    ),
-                }
-                .into());
-            }
-        };
-        *side = u32::try_from(n).unwrap_or(0);
-        if !(1..=scene::file::MAX_IMAGE_SIDE).contains(side) {
-            return Err(error::SceneError::Setting {
-                key: s.arg.clone(),
-                message: format!("{n} is out of range 1..={}", scene::file::MAX_IMAGE_SIDE),
-            }
-            .into());
-        }
-    }
-    if let Some(mut s) = scene::builtin::builtin(name_or_path) {
-        if !settings.is_empty() {
-            (s.image.width, s.image.height) = size;
-        }
-        return Ok(s);
-    }
-    let path = std::path::Path::new(name_or_path);
-    if !path.exists() {
+    let builtin = scene::builtin::builtin(name_or_path);
+    if builtin.is_none() && !path.exists() {
         return Err(error::SceneError::UnknownScene {
             name: name_or_path.to_owned(),
         }
         .into());
     }
-    if scene::framing::is_mesh_path(path) {
-        let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-        if !ext.eq_ignore_ascii_case("obj") {
-            return Err(error::SceneError::Invalid {
-                file: path.to_path_buf(),
-                line: 1,
-                key: "mesh".into(),
-                message: format!("{ext} meshes are not supported yet (OBJ only)"),
-            }
-            .into());
-        }
-        return scene::framing::bare_mesh(path, size);
+    if builtin.is_none() && !scene::framing::is_mesh_path(path) {
+        return Ok(scene::set::load_with(path, settings)?);
     }
-    Ok(scene::file::load(path)?)
+    let (width, height) = scene::set::image_size(settings, name_or_path)?;
+    if let Some(mut s) = builtin {
+        s.image.width = width.unwrap_or(s.image.width);
+        s.image.height = height.unwrap_or(s.image.height);
+        return Ok(s);
+    }
+    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
+    if !ext.eq_ignore_ascii_case("obj") {
+        return Err(error::SceneError::Invalid {
+            file: path.to_path_buf(),
+            line: 1,
+            key: "mesh".into(),
+            message: format!("{ext} meshes are not supported yet (OBJ only)"),
+        }
+        .into());
+    }
+    scene::framing::bare_mesh(path, (width.unwrap_or(512), height.unwrap_or(512)))
 }

@@ -134,6 +134,39 @@ impl Setting {
     }
 }
 
+/// The image size `settings` ask for (`image.width`, `image.height`, each `None` when not set),
+/// for `what`, a scene without a file (a built-in or a bare mesh), to which no other key applies.
+pub fn image_size(
+    settings: &[Setting],
+    what: &str,
+) -> Result<(Option<u32>, Option<u32>), SceneError> {
+    let mut size = (None, None);
+    for s in settings {
+        let fail = |message: String| SceneError::Setting {
+            key: s.arg.clone(),
+            message,
+        };
+        let side = match s.key.as_str() {
+            "image.width" => &mut size.0,
+            "image.height" => &mut size.1,
+            _ => {
+                return Err(fail(format!(
+                    "{what} is not a scene file: only --size (image.width, image.height) \
+                     applies to it"
+                )));
+            }
+        };
+        let n = s
+            .value
+            .as_integer()
+            .and_then(|n| u32::try_from(n).ok())
+            .filter(|n| (1..=MAX_IMAGE_SIDE).contains(n))
+            .ok_or_else(|| fail(format!("must be an integer in 1..={MAX_IMAGE_SIDE}")))?;
+        *side = Some(n);
+    }
+    Ok(size)
+}
+
 /// The scene file at `path` with `settings` applied in order; see the module docs.
 pub fn load_with(path: &Path, settings: &[Setting]) -> Result<Scene, SceneError> {
     let mut scene = super::file::load(path)?;
