@@ -79,11 +79,9 @@ fn a_look_at_camera_renders_as_the_explicit_camera_it_stands_for() {
     );
 }
 
-/// Scene A with a camera path: a dolly from the origin to (2, 1, 1) with a changing field of view
-/// and a tilting up vector.
-fn path_scene() -> Scene {
-    spheres_with_camera(
-        "[[camera.key]]
+/// Three look-at keys: a dolly from the origin to (2, 1, 1) with a changing field of view and a
+/// tilting up vector.
+const PATH_KEYS: &str = "[[camera.key]]
 frame = 0
 eye = [0.0, 0.0, 0.0]
 look_at = [0.0, 0.0, -7.0]
@@ -102,8 +100,11 @@ frame = 10
 eye = [-1.5, 0.5, 0.3]
 look_at = [0.0, 0.0, -7.0]
 up = [0.0, 1.0, 0.2]
-fov_y = 75.5",
-    )
+fov_y = 75.5";
+
+/// Scene A with the camera path [`PATH_KEYS`].
+fn path_scene() -> Scene {
+    spheres_with_camera(PATH_KEYS)
 }
 
 #[test]
@@ -233,31 +234,9 @@ fn an_orbits_frame_0_renders_as_its_static_camera_and_every_frame_keeps_the_dist
 
 #[test]
 fn a_catmull_rom_key_frame_renders_as_the_key_and_frames_between_bend() {
-    let text = spheres_text_with_camera(
-        "[camera]
-interpolation = \"catmull-rom\"
-
-[[camera.key]]
-frame = 0
-eye = [0.0, 0.0, 0.0]
-look_at = [0.0, 0.0, -7.0]
-up = [0.0, 1.0, 0.0]
-fov_y = 90.0
-
-[[camera.key]]
-frame = 4
-eye = [2.0, 1.0, 1.0]
-look_at = [0.0, -0.5, -7.0]
-up = [0.1, 1.0, 0.0]
-fov_y = 60.0
-
-[[camera.key]]
-frame = 10
-eye = [-1.5, 0.5, 0.3]
-look_at = [0.0, 0.0, -7.0]
-up = [0.0, 1.0, 0.2]
-fov_y = 75.5",
-    );
+    let text = spheres_text_with_camera(&format!(
+        "[camera]\ninterpolation = \"catmull-rom\"\n\n{PATH_KEYS}"
+    ));
     let smooth = parse(&text, Path::new("spheres.toml")).unwrap();
     let linear = path_scene();
     for frame in [0, 4, 10] {
