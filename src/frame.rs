@@ -58,10 +58,7 @@ impl RenderFrame {
     /// The frame centred on a mesh's bounding box (f64): where a mesh on its own — `kdtree build`
     /// — is built with the most precision.
     pub fn centered_on(mesh: &ObjMesh) -> RenderFrame {
-        let (lo, hi) = mesh.positions.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), p| (lo.min(DVec3::from(*p)), hi.max(DVec3::from(*p))),
-        );
+        let (lo, hi) = mesh.bounds();
         let origin = if lo.is_finite() && hi.is_finite() {
             (lo + hi) / 2.0
         } else {

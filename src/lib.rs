@@ -97,15 +97,6 @@ pub fn load_scene_with(
         s.image.height = height.unwrap_or(s.image.height);
         return Ok(s);
     }
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("");
-    if !ext.eq_ignore_ascii_case("obj") {
-        return Err(error::SceneError::Invalid {
-            file: path.to_path_buf(),
-            line: 1,
-            key: "mesh".into(),
-            message: format!("{ext} meshes are not supported yet (OBJ only)"),
-        }
-        .into());
-    }
+    mesh::check_format(path)?;
     scene::framing::bare_mesh(path, (width.unwrap_or(512), height.unwrap_or(512)))
 }

@@ -232,6 +232,15 @@ pub struct ObjRead {
 pub const NO_MATERIAL: u32 = u32::MAX;
 
 impl ObjMesh {
+    /// The bounding box of the vertex positions, in f64; `(+∞, −∞)` without vertices.
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        self.positions
+            .iter()
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), &p| {
+                (lo.min(p.into()), hi.max(p.into()))
+            })
+    }
+
     /// Reads an OBJ file through `tobj` in f64 (triangulated, single index, all models merged in
     /// file order, so triangle `k` is the `k`-th face of the file; polygons are fanned in place).
     ///

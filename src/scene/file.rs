@@ -213,12 +213,17 @@ struct RawMesh {
 /// Reads and validates the scene file at `path` (a regular file of at most
 /// [`crate::input::SCENE_CAP`] bytes).
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
-    let text = crate::input::read_text_capped(path, crate::input::SCENE_CAP, "scene files")
-        .map_err(|source| SceneError::Io {
+    parse(&read(path)?, path)
+}
+
+/// The text of the scene file at `path` (a regular file within the scene-file size cap).
+pub fn read(path: &Path) -> Result<String, SceneError> {
+    crate::input::read_text_capped(path, crate::input::SCENE_CAP, "scene files").map_err(|source| {
+        SceneError::Io {
             file: path.to_path_buf(),
             source,
-        })?;
-    parse(&text, path)
+        }
+    })
 }
 
 /// Parses scene text; `path` names the file in errors and anchors relative paths.
@@ -883,10 +888,8 @@ impl Cx<'_> {
         for m in meshes {
             let mesh = crate::mesh::ObjMesh::read(&m.path)
                 .map_err(|e| fail(format!("cannot read a mesh to frame: {e}")))?;
-            for &p in &mesh.positions {
-                lo = lo.min(p.into());
-                hi = hi.max(p.into());
-            }
+            let (mlo, mhi) = mesh.bounds();
+            (lo, hi) = (lo.min(mlo), hi.max(mhi));
         }
         let view = super::framing::frame_box(lo, hi, from, fov_y, (image.width, image.height))
             .ok_or_else(|| fail("nothing to frame: no sphere or mesh vertex".into()))?;

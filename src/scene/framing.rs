@@ -64,11 +64,7 @@ pub fn frame_box(
 /// (`kd = 0.8`, `ka = 0.1`), shadows on, no reflections.
 pub fn bare_mesh(path: &Path, (width, height): (u32, u32)) -> Result<Scene, LoadError> {
     let mesh = ObjMesh::read(path)?;
-    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
-    for &p in &mesh.positions {
-        lo = lo.min(DVec3::from(p));
-        hi = hi.max(DVec3::from(p));
-    }
+    let (lo, hi) = mesh.bounds();
     let image = ImageSettings {
         width,
         height,

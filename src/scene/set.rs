@@ -169,14 +169,11 @@ pub fn image_size(
 
 /// The scene file at `path` with `settings` applied in order; see the module docs.
 pub fn load_with(path: &Path, settings: &[Setting]) -> Result<Scene, SceneError> {
-    let mut scene = super::file::load(path)?;
+    let text = super::file::read(path)?;
+    let mut scene = parse(&text, path)?;
     if settings.is_empty() {
         return Ok(scene);
     }
-    let text = std::fs::read_to_string(path).map_err(|source| SceneError::Io {
-        file: path.to_path_buf(),
-        source,
-    })?;
     let mut doc: Table = text
         .parse()
         .map_err(|e: toml::de::Error| SceneError::Setting {

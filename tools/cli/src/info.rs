@@ -40,18 +40,11 @@ impl Info {
             };
             let mesh = ObjMesh::read_with(&m.path, read)
                 .with_context(|| format!("cannot read mesh {}", m.path.display()))?;
-            let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-            for &p in &mesh.positions {
-                lo = lo.min(p.into());
-                hi = hi.max(p.into());
-            }
-            let degenerate = mesh
-                .indices
-                .iter()
-                .filter(|t| {
-                    let [a, b, c] = t.map(|i| DVec3::from(mesh.positions[i as usize]));
-                    (b - a).cross(c - a) == DVec3::ZERO
-                })
+            let (lo, hi) = mesh.bounds();
+            // Degenerate as the renderer sees it: in f32, in the frame centred on the mesh.
+            let centred = mesh.to_frame((lo + hi) / 2.0)?;
+            let degenerate = (0..centred.len())
+                .filter(|&k| centred.is_degenerate(k))
                 .count();
             for k in 0..mesh.indices.len() {
                 let material = match (&m.mtl, mesh.face_materials.get(k)) {

@@ -1,7 +1,5 @@
 //! `wavefront render MESH.obj` with no scene file frames the mesh (SPEC §16).
 
-use std::process::Command;
-
 use wavefront_kit::testkit::Scratch;
 
 /// A cube from (1, 2, 3) to (3, 4, 5), as 12 triangles.
@@ -10,10 +8,8 @@ f 1 3 2\nf 1 4 3\nf 5 6 7\nf 5 7 8\nf 1 2 6\nf 1 6 5\nf 4 7 3\nf 4 8 7\nf 1 5 8\
 f 2 3 7\nf 2 7 6\n";
 
 fn run(dir: &Scratch, args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_wavefront"))
-        .args(args)
-        .current_dir(dir.path())
-        .env("XDG_CACHE_HOME", dir.path().join("cache"))
+    let mut c = dir.command(env!("CARGO_BIN_EXE_wavefront"));
+    c.args(args)
         .output()
         .expect("cannot run the wavefront binary")
 }

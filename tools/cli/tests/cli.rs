@@ -19,12 +19,9 @@ impl Scratch {
 
     /// Runs the binary with `args` in this directory.
     fn run(&self, args: &[&str]) -> Output {
-        Command::new(env!("CARGO_BIN_EXE_wavefront"))
+        self.0
+            .command(env!("CARGO_BIN_EXE_wavefront"))
             .args(args)
-            .current_dir(self.0.path())
-            .env_remove("WAVEFRONT_SIBENIK")
-            // Tree-cache entries stay in the scratch directory, not the user's cache.
-            .env("XDG_CACHE_HOME", self.0.join("cache"))
             .output()
             .expect("cannot run the wavefront binary")
     }

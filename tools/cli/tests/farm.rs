@@ -19,13 +19,10 @@ impl Scratch {
     }
 
     fn command(&self, args: &[&str]) -> Command {
-        let mut c = Command::new(env!("CARGO_BIN_EXE_wavefront"));
+        let mut c = self.0.command(env!("CARGO_BIN_EXE_wavefront"));
         c.args(args)
-            .current_dir(self.0.path())
             .env_remove("SLURM_ARRAY_TASK_ID")
-            .env_remove("JOB_COMPLETION_INDEX")
-            // Tree-cache entries stay in the scratch directory, not the user's cache.
-            .env("XDG_CACHE_HOME", self.0.join("cache"));
+            .env_remove("JOB_COMPLETION_INDEX");
         c
     }
 

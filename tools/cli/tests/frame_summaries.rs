@@ -1,7 +1,6 @@
 //! `render --frames` prints one summary per frame with that frame's own time, not the time since
 //! the command started.
 
-use std::process::Command;
 use std::time::Instant;
 
 use wavefront_kit::testkit::{Scratch, spheres_camera_path_toml};
@@ -12,10 +11,10 @@ fn each_frames_summary_gives_that_frames_time() {
     let scene = dir.path().join("path.toml");
     std::fs::write(&scene, spheres_camera_path_toml(0.0, (96, 64))).unwrap();
     let start = Instant::now();
-    let o = Command::new(env!("CARGO_BIN_EXE_wavefront"))
+    let o = dir
+        .command(env!("CARGO_BIN_EXE_wavefront"))
         .args(["render", "path.toml", "--frames", "0-3", "--samples", "16"])
         .args(["--stats", "--no-cache", "-o", "f_#.png"])
-        .current_dir(dir.path())
         .output()
         .expect("cannot run the wavefront binary");
     let wall = start.elapsed().as_secs_f64();

@@ -1,15 +1,11 @@
 //! `--set KEY=VALUE` and `--size WxH` (SPEC §16) render exactly what the edited scene file
 //! renders, and bad settings are errors naming the setting.
 
-use std::process::Command;
-
 use wavefront_kit::testkit::{Scratch, project_root};
 
 fn run(dir: &Scratch, args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_wavefront"))
-        .args(args)
-        .current_dir(dir.path())
-        .env("XDG_CACHE_HOME", dir.path().join("cache"))
+    let mut c = dir.command(env!("CARGO_BIN_EXE_wavefront"));
+    c.args(args)
         .output()
         .expect("cannot run the wavefront binary")
 }

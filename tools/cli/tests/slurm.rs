@@ -76,28 +76,25 @@ impl Cluster {
 
     /// `JobState` of every record of job `id` (one per array task for an array).
     fn job_states(&self, id: &str) -> Vec<String> {
-        let out = self
-            .command("scontrol")
-            .args(["show", "job", id])
-            .output()
-            .expect("cannot run scontrol");
-        String::from_utf8_lossy(&out.stdout)
-            .split_whitespace()
-            .filter_map(|w| w.strip_prefix("JobState="))
-            .map(str::to_owned)
-            .collect()
+        self.job_field(id, "JobState")
     }
 
     /// The job names of job `id`'s records.
     fn job_names(&self, id: &str) -> Vec<String> {
+        self.job_field(id, "JobName")
+    }
+
+    /// The value of `field` in every record `scontrol show job id` prints.
+    fn job_field(&self, id: &str, field: &str) -> Vec<String> {
         let out = self
             .command("scontrol")
             .args(["show", "job", id])
             .output()
             .expect("cannot run scontrol");
+        let prefix = format!("{field}=");
         String::from_utf8_lossy(&out.stdout)
             .split_whitespace()
-            .filter_map(|w| w.strip_prefix("JobName="))
+            .filter_map(|w| w.strip_prefix(prefix.as_str()))
             .map(str::to_owned)
             .collect()
     }

@@ -306,6 +306,16 @@ impl Scratch {
         &self.0
     }
 
+    /// `program` to run in this directory, keeping tree-cache entries in it (`XDG_CACHE_HOME` is
+    /// its `cache/`) and ignoring the caller's `$WAVEFRONT_SIBENIK`.
+    pub fn command(&self, program: impl AsRef<std::ffi::OsStr>) -> std::process::Command {
+        let mut c = std::process::Command::new(program);
+        c.current_dir(&self.0)
+            .env_remove("WAVEFRONT_SIBENIK")
+            .env("XDG_CACHE_HOME", self.0.join("cache"));
+        c
+    }
+
     /// `file` inside the directory.
     pub fn join(&self, file: &str) -> PathBuf {
         self.0.join(file)
