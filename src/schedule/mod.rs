@@ -339,8 +339,9 @@ pub fn render_observed(
 /// [watches stages](Observer::watches_stages) (or on one thread) waves are traced one at a time,
 /// each kernel split over the threads; otherwise each thread traces whole waves, taking the next
 /// wave as it finishes one, with every kernel on that thread, and the waves (with their stage
-/// records, [`Observer::stage_done`]) reach the sink and the observer in order. The image is the same either way (every kernel is deterministic). Stops early, after a
-/// wave, when the sink no longer [accepts](PixelSink::accepts) pixels. The sink
+/// records, [`Observer::stage_done`]) reach the sink and the observer in order. The image is the
+/// same either way (every kernel is deterministic). Stops early, after a wave, when the sink no
+/// longer [accepts](PixelSink::accepts) pixels. The sink
 /// receives the pixels of [`RenderOptions::region_of`] the scene, row-major within the region.
 pub fn render_into(
     scene: &Scene,

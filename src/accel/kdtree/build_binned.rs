@@ -366,26 +366,21 @@ fn node_task(
     arena: &mut Arena,
 ) {
     let range = first..first + n;
-    if n <= EXACT_MAX {
-        build_sah::subtree(
-            ctx.mesh,
-            bx,
-            arena.ids[range.clone()].to_vec(),
-            arena.bounds[range].to_vec(),
-            depth,
-            ctx.max_depth,
-            out,
-        );
-        return;
-    }
-    if depth >= ctx.max_depth {
+    let binned = n > EXACT_MAX;
+    if binned && depth >= ctx.max_depth {
         out.leaf(&arena.ids[range]);
         return;
     }
-    let grid = Grid::new(&geo);
-    let mut bins = Bins::zero();
-    grid.count(&mut bins, &arena.bounds[range.clone()]);
-    let split = find_split(&bx, &geo, n, &bins).filter(|s| s.cost < COST_INTERSECT * n as f32);
+    // A binned split that beats a leaf; small nodes, and large ones without one, take the exact
+    // sweep.
+    let split = binned
+        .then(|| {
+            let grid = Grid::new(&geo);
+            let mut bins = Bins::zero();
+            grid.count(&mut bins, &arena.bounds[range.clone()]);
+            find_split(&bx, &geo, n, &bins).filter(|s| s.cost < COST_INTERSECT * n as f32)
+        })
+        .flatten();
     let Some(split) = split else {
         build_sah::subtree(
             ctx.mesh,
