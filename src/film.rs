@@ -139,11 +139,11 @@ impl Film {
     /// 8-bit RGB: `round(255 · clamp(L, 0, 1)^(1/gamma))` per channel (SPEC §2).
     pub fn to_rgb8(&self, gamma: f32) -> Vec<u8> {
         let inv = 1.0 / gamma;
-        self.pixels
-            .par_iter()
-            .with_min_len(MIN_CHUNK)
-            .flat_map_iter(|p| p.to_array().map(|c| encode(c, inv)))
-            .collect()
+        let mut rgb = vec![0; 3 * self.pixels.len()];
+        rgb.par_chunks_mut(3 * MIN_CHUNK)
+            .zip(self.pixels.par_chunks(MIN_CHUNK))
+            .for_each(|(out, px)| encode_rgb8(px, inv, out));
+        rgb
     }
 
     /// Writes the image as `.png` or `.ppm` (by extension). The file appears complete or not at
@@ -188,6 +188,24 @@ pub fn resolve_wave(buffer: &SampleBuffer, wave: &Wave, out: &mut Vec<Vec3>) {
 /// (SPEC §2: the same bits on every CPU); NaN becomes 0.
 #[inline]
 pub fn encode(c: f32, inv_gamma: f32) -> u8 {
+    with_table(inv_gamma, |t| t.encode(c))
+}
+
+/// Encodes linear RGB `pixels` to 8-bit RGB in `out` (three bytes per pixel), as [`encode`]
+/// does each channel, looking the table up once for the whole slice.
+pub fn encode_rgb8(pixels: &[Vec3], inv_gamma: f32, out: &mut [u8]) {
+    debug_assert_eq!(out.len(), 3 * pixels.len());
+    with_table(inv_gamma, |t| {
+        for (rgb, p) in out.chunks_exact_mut(3).zip(pixels) {
+            rgb[0] = t.encode(p.x);
+            rgb[1] = t.encode(p.y);
+            rgb[2] = t.encode(p.z);
+        }
+    });
+}
+
+/// Runs `f` with this thread's [`GammaTable`] of `inv_gamma` (built when the gamma changes).
+fn with_table<R>(inv_gamma: f32, f: impl FnOnce(&GammaTable) -> R) -> R {
     thread_local! {
         static TABLE: std::cell::RefCell<GammaTable> = std::cell::RefCell::new(GammaTable::new(1.0 / 2.2));
     }
@@ -195,7 +213,7 @@ pub fn encode(c: f32, inv_gamma: f32) -> u8 {
         if t.inv_gamma.to_bits() != inv_gamma.to_bits() {
             *t = GammaTable::new(inv_gamma);
         }
-        t.encode(c)
+        f(t)
     })
 }
 
@@ -204,14 +222,27 @@ pub fn encode(c: f32, inv_gamma: f32) -> u8 {
 /// `round(255 · c^(1/γ)) ≥ k`, [`arith::pow`] being the power ([`gamma_level`]), found by
 /// bisection over the bit patterns; a value's level is the number of thresholds at or below it.
 /// That is [`gamma_level`] itself wherever it does not decrease (everywhere, as far as tested)
-/// for the cost of a binary search instead of an `exp2` and a `log2` per channel.
+/// for the cost of a table look-up instead of an `exp2` and a `log2` per channel.
+///
+/// The look-up: the value's bit pattern shifted right by [`BUCKET_SHIFT`] names a bucket (its
+/// exponent and top mantissa bits), whose entry is the level at the bucket's first value; the
+/// thresholds inside the bucket (rarely more than one) are then stepped over. The count is the
+/// same as a search over all 255 thresholds (tested on every threshold's neighbours and on
+/// every bucket's edges).
 #[derive(Clone, Debug)]
 pub struct GammaTable {
     /// `1/γ`, the exponent the table encodes.
     pub inv_gamma: f32,
     /// `start[k − 1]`: the first value of level `k`, increasing.
     start: [f32; 255],
+    /// `bucket[b]`: the level of the smallest non-negative f32 whose bits shifted right by
+    /// [`BUCKET_SHIFT`] are `b`, for every bucket up to and including 1.0's.
+    bucket: Box<[u8]>,
 }
+
+/// Bits dropped from an f32 pattern to name its [`GammaTable`] bucket: buckets span a relative
+/// width of 2^-7, under one level at the top of any gamma up to 1.
+const BUCKET_SHIFT: u32 = 16;
 
 /// `round(255 · c^inv_gamma)` for `c` in `[0, 1]`: the definition [`GammaTable`] tabulates.
 #[inline]
@@ -220,10 +251,10 @@ pub fn gamma_level(c: f32, inv_gamma: f32) -> u8 {
 }
 
 impl GammaTable {
-    /// The table of `inv_gamma` (255 bisections of 30 steps each).
+    /// The table of `inv_gamma` (255 bisections of 30 steps each, then one pass over the buckets).
     pub fn new(inv_gamma: f32) -> GammaTable {
         let one = 1.0f32.to_bits();
-        let start = std::array::from_fn(|i| {
+        let start: [f32; 255] = std::array::from_fn(|i| {
             let k = i as u8 + 1;
             // Invariant: level(lo) < k ≤ level(hi); level(0) = 0 and level(1) = 255.
             let (mut lo, mut hi) = (0u32, one);
@@ -237,12 +268,45 @@ impl GammaTable {
             }
             f32::from_bits(hi)
         });
-        GammaTable { inv_gamma, start }
+        // One merge pass: the level only grows with the bucket's first value.
+        let mut level = 0usize;
+        let bucket = (0..=one >> BUCKET_SHIFT)
+            .map(|b| {
+                let first = f32::from_bits(b << BUCKET_SHIFT);
+                while level < start.len() && start[level] <= first {
+                    level += 1;
+                }
+                level as u8
+            })
+            .collect();
+        GammaTable {
+            inv_gamma,
+            start,
+            bucket,
+        }
     }
 
     /// The 8-bit level of linear value `c` (clamped to `[0, 1]`; NaN becomes 0).
     #[inline]
     pub fn encode(&self, c: f32) -> u8 {
+        // NaN, negative values and both zeros are level 0; 1 and above are level 255.
+        if !(c > 0.0) {
+            return 0;
+        }
+        if c >= 1.0 {
+            return 255;
+        }
+        let mut level = usize::from(self.bucket[(c.to_bits() >> BUCKET_SHIFT) as usize]);
+        while level < self.start.len() && self.start[level] <= c {
+            level += 1;
+        }
+        level as u8
+    }
+
+    /// [`GammaTable::encode`] by a binary search over all the thresholds: the definition the
+    /// bucketed look-up is checked against.
+    #[cfg(test)]
+    fn encode_by_search(&self, c: f32) -> u8 {
         if c.is_nan() {
             return 0;
         }
@@ -324,6 +388,51 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn the_bucketed_look_up_counts_the_thresholds_as_a_search_does() {
+        for gamma in [2.2f32, 1.8, 1.0, 0.5, 4.0] {
+            let table = GammaTable::new(1.0 / gamma);
+            // Every threshold's neighbours, every bucket's first and last values, and the
+            // values outside [0, 1].
+            let thresholds = table.start.iter().flat_map(|t| {
+                let b = t.to_bits();
+                (b - 2..=b + 2).map(f32::from_bits)
+            });
+            let buckets = (0..=1.0f32.to_bits() >> BUCKET_SHIFT).flat_map(|b| {
+                let first = b << BUCKET_SHIFT;
+                [first, first + 1, first + (1 << BUCKET_SHIFT) - 1].map(f32::from_bits)
+            });
+            let outside = [
+                -0.0,
+                -1.0,
+                1.0,
+                1.5,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                f32::NAN,
+            ];
+            for c in thresholds.chain(buckets).chain(outside) {
+                assert_eq!(
+                    table.encode(c),
+                    table.encode_by_search(c),
+                    "level of {c:e} at gamma {gamma}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn encode_rgb8_encodes_each_channel() {
+        let pixels = [Vec3::new(0.0, 0.5, 1.0), Vec3::new(-1.0, f32::NAN, 0.25)];
+        let mut out = [7u8; 6];
+        encode_rgb8(&pixels, 1.0 / 2.2, &mut out);
+        let each: Vec<u8> = pixels
+            .iter()
+            .flat_map(|p| p.to_array().map(|c| encode(c, 1.0 / 2.2)))
+            .collect();
+        assert_eq!(out.as_slice(), each.as_slice());
     }
 
     #[test]

@@ -22,11 +22,10 @@ use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender};
 use glam::Vec3;
-use rayon::prelude::*;
 
 use crate::error::OutputError;
-use crate::film::{PixelSink, encode};
-use crate::queue::{MIN_CHUNK, PixelIndex};
+use crate::film::{PixelSink, encode_rgb8};
+use crate::queue::PixelIndex;
 
 /// Bytes of compressed image data per PNG `IDAT` chunk (the stream writer's buffer).
 pub const PNG_IDAT_BYTES: usize = 1 << 20;
@@ -451,18 +450,11 @@ impl PixelSink for ImageStream {
         if self.rows.is_none() {
             return;
         }
-        let inv = self.inv_gamma;
+        // On the calling thread: a wave's pixels take microseconds, and the wave workers keep
+        // the cores (waking the pool's threads per wave cost more than it saved).
         let start = self.pending.len();
         self.pending.resize(start + 3 * pixels.len(), 0);
-        self.pending[start..]
-            .par_chunks_mut(3)
-            .with_min_len(MIN_CHUNK)
-            .zip(pixels)
-            .for_each(|(rgb, p)| {
-                for (o, c) in rgb.iter_mut().zip(p.to_array()) {
-                    *o = encode(c, inv);
-                }
-            });
+        encode_rgb8(pixels, self.inv_gamma, &mut self.pending[start..]);
         self.next = first + pixels.len() as u64;
         self.send_rows();
     }
