@@ -290,7 +290,7 @@ impl GammaTable {
     #[inline]
     pub fn encode(&self, c: f32) -> u8 {
         // NaN, negative values and both zeros are level 0; 1 and above are level 255.
-        if !(c > 0.0) {
+        if c.is_nan() || c <= 0.0 {
             return 0;
         }
         if c >= 1.0 {
