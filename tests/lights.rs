@@ -11,7 +11,9 @@
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
+use wavefront::accel::kdtree::KdAccel;
 use wavefront::scene::file::parse;
+use wavefront::simd::Level;
 use wavefront::{RenderOptions, World};
 use wavefront_kit::testkit::{Scratch, render_film_with};
 
@@ -325,7 +327,8 @@ fn mesh_shadows_of_directional_and_spot_lights_are_exact() {
 
 /// The batch occlusion query (light-rooted bundles where rays share a far end, packets
 /// otherwise) against the single-ray one, with unbounded `t_max` (a directional light's shadow
-/// rays) and with rays that all end at one point (a spot's), on a mesh of random triangles.
+/// rays: all routed to the packet path) and with rays that all end at one point (a spot's:
+/// bundled), on a mesh of random triangles, through the world and at every SIMD level.
 #[test]
 fn unbounded_shadow_rays_take_the_same_answers_in_batches_as_one_by_one() {
     let dir = Scratch::new("unbounded");
@@ -385,6 +388,8 @@ fn unbounded_shadow_rays_take_the_same_answers_in_batches_as_one_by_one() {
             origins.iter().map(|&o| (spot - o).length()).collect(),
         ),
     ];
+    let tris = world.triangles().expect("a mesh");
+    let accel = KdAccel::new(tris.tree().clone(), tris.mesh());
     for (what, dirs, t_max) in cases {
         let mut batch = vec![false; n];
         world.intersect_occluded_batch(&origins, &dirs, &t_max, &mut batch);
@@ -397,6 +402,32 @@ fn unbounded_shadow_rays_take_the_same_answers_in_batches_as_one_by_one() {
             "{what}: {blocked} of {n} blocked"
         );
         assert_eq!(batch, single, "{what}");
+        // At every SIMD level, in the shadow stage's chunks: unbounded rays all take the packet
+        // path (no finite far end to bundle at); rays ending at the spot are bundled there.
+        for level in Level::supported() {
+            let mut out = vec![false; n];
+            let mut fallback = 0;
+            for (c, o) in out.chunks_mut(KdAccel::OCCLUDED_BATCH).enumerate() {
+                let r = c * KdAccel::OCCLUDED_BATCH..c * KdAccel::OCCLUDED_BATCH + o.len();
+                let counts = accel.intersect_occluded_batch_counted(
+                    level,
+                    &origins[r.clone()],
+                    &dirs[r.clone()],
+                    &t_max[r],
+                    o,
+                );
+                fallback += counts.fallback as usize;
+            }
+            assert_eq!(out, single, "{what}, {level:?}");
+            if what == "directional" {
+                assert_eq!(fallback, n, "{what}, {level:?}: all on the packet path");
+            } else {
+                assert!(
+                    fallback < n / 10,
+                    "{what}, {level:?}: {fallback} of {n} not bundled"
+                );
+            }
+        }
     }
 }
 
