@@ -200,7 +200,7 @@ impl World {
         &self.frame
     }
 
-    /// Point lights.
+    /// The lights (point, directional, spot) in the render frame.
     pub fn lights(&self) -> &[Light] {
         &self.lights
     }

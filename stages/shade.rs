@@ -23,7 +23,7 @@ use rayon::prelude::*;
 
 use crate::arith;
 use crate::film::SampleBuffer;
-use crate::frame::Light;
+use crate::frame::{Emission, Light};
 use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::split_by_counts;
@@ -164,9 +164,11 @@ impl ShadowPass {
     }
 }
 
-/// `(Ld + Ls)·I` from one light at `p` with facing normal `n` and unit view vector `v`, and
-/// `n·l`. Finite for every finite input: a zero half vector counts as `n·h = 0`, and a light at
-/// `p` itself gives nothing.
+/// `(Ld + Ls)·I·a` from one light at `p` with facing normal `n` and unit view vector `v`, and
+/// `n·l`, where `l` and `a` are the light's direction and attenuation there ([`Light::toward`],
+/// [`Light::attenuation`]: spot factor, falloff). Finite for every finite input: a zero half
+/// vector counts as `n·h = 0`, a point or spot light at `p` itself gives nothing, and so does an
+/// attenuated value that overflows.
 #[inline]
 pub fn direct_light(
     light: &Light,
@@ -176,12 +178,9 @@ pub fn direct_light(
     n: Vec3,
     v: Vec3,
 ) -> (Vec3, f32) {
-    let to_light = light.position - p;
-    let dist = to_light.length();
-    if !(dist > 0.0 && dist.is_finite()) {
+    let Some((l, dist)) = light.toward(p) else {
         return (Vec3::ZERO, 0.0);
-    }
-    let l = to_light / dist;
+    };
     let n_dot_l = n.dot(l);
     let mut c = m.kd * n_dot_l.max(0.0);
     if specular && m.has_specular() {
@@ -194,7 +193,12 @@ pub fn direct_light(
         };
         c += m.ks * arith::pow(n_dot_h, m.p);
     }
-    (c * light.intensity, n_dot_l)
+    let c = c * light.intensity;
+    if !light.attenuates() {
+        return (c, n_dot_l);
+    }
+    let c = c * light.attenuation(l, dist);
+    (if c.is_finite() { c } else { Vec3::ZERO }, n_dot_l)
 }
 
 /// The radiance one hit emits now: `(1 − α)·weight·(La [+ Σ (Ld + Ls) over every light when
@@ -241,7 +245,7 @@ pub fn shadow_radiance(
         direct_light(light, m, specular, point, normal, -direction)
     } else {
         let (c, _) = direct_light(light, m, specular, point, shading, -direction);
-        (c, normal.dot((light.position - point).normalize_or_zero()))
+        (c, normal.dot(light.side_direction(point)))
     };
     if n_dot_l > 0.0 && c != Vec3::ZERO {
         weight * (1.0 - m.alpha) * c
@@ -251,9 +255,13 @@ pub fn shadow_radiance(
 }
 
 /// The shadow ray from `origin` (the hit's offset spawn point) to `light`: unit direction and
-/// `t_max`, the distance shortened at the light by its error bound ([`shadow_t_max`]).
+/// `t_max`, the distance shortened at the light by its error bound ([`shadow_t_max`]); for a
+/// directional light `l` itself and `t_max = ∞` (unbounded: anything along it blocks).
 #[inline]
 pub fn shadow_ray(origin: Vec3, light: &Light) -> (Vec3, f32) {
+    if let Emission::Directional { to_light } = light.emission {
+        return (to_light, f32::INFINITY);
+    }
     let to = light.position - origin;
     let dist = to.length();
     let dir = to / dist;
@@ -440,15 +448,17 @@ impl HitLanes {
         x
     }
 
-    /// [`shadow_radiance`] of the 8 hits toward `light`, lane by lane in its operations' order
-    /// (the specular power as [`arith::pow`] gives it: [`specular_power`]), and a bit per lane
-    /// whose value is non-zero.
+    /// [`Light::toward`] from the 8 hits, lane by lane in its operations' order: `l`, the
+    /// distance, and whether the light gives anything.
     #[inline(always)]
-    fn radiance(&self, light: &Light) -> ([[f32; LANES]; 3], u32) {
+    fn toward(&self, light: &Light) -> ([[f32; LANES]; 3], [f32; LANES], [bool; LANES]) {
+        if let Emission::Directional { to_light } = light.emission {
+            let l = to_light.to_array().map(|c| [c; LANES]);
+            return (l, [f32::INFINITY; LANES], [true; LANES]);
+        }
         let lp = light.position;
         let mut l_dir = [[0.0f32; LANES]; 3];
-        let mut n_dot_l = [0.0f32; LANES];
-        let mut n_dot_h = [0.0f32; LANES];
+        let mut dist = [0.0f32; LANES];
         let mut valid = [false; LANES];
         for l in 0..LANES {
             let to = [
@@ -456,9 +466,25 @@ impl HitLanes {
                 lp.y - self.p[1][l],
                 lp.z - self.p[2][l],
             ];
-            let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
-            valid[l] = (dist > 0.0) & dist.is_finite();
-            let u = to.map(|c| c / dist);
+            dist[l] = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
+            valid[l] = (dist[l] > 0.0) & dist[l].is_finite();
+            for k in 0..3 {
+                l_dir[k][l] = to[k] / dist[l];
+            }
+        }
+        (l_dir, dist, valid)
+    }
+
+    /// [`shadow_radiance`] of the 8 hits toward `light`, lane by lane in its operations' order
+    /// (the specular power as [`arith::pow`] gives it: [`specular_power`]; the attenuation from
+    /// [`Light::attenuation`] itself), and a bit per lane whose value is non-zero.
+    #[inline(always)]
+    fn radiance(&self, light: &Light) -> ([[f32; LANES]; 3], u32) {
+        let (l_dir, dist, valid) = self.toward(light);
+        let mut n_dot_l = [0.0f32; LANES];
+        let mut n_dot_h = [0.0f32; LANES];
+        for l in 0..LANES {
+            let u = [l_dir[0][l], l_dir[1][l], l_dir[2][l]];
             let n = [self.n[0][l], self.n[1][l], self.n[2][l]];
             n_dot_l[l] = n[0] * u[0] + n[1] * u[1] + n[2] * u[2];
             // The half vector with v = −d.
@@ -467,11 +493,16 @@ impl HitLanes {
             let hn = h.map(|c| c / len);
             let ndh = (n[0] * hn[0] + n[1] * hn[1] + n[2] * hn[2]).max(0.0);
             n_dot_h[l] = if len > 0.0 { ndh } else { 0.0 };
-            for k in 0..3 {
-                l_dir[k][l] = u[k];
-            }
         }
         let power = specular_power(&n_dot_h, &self.exponent);
+        let attenuates = light.attenuates();
+        let mut scale = [1.0f32; LANES];
+        if attenuates {
+            for l in 0..LANES {
+                let u = Vec3::new(l_dir[0][l], l_dir[1][l], l_dir[2][l]);
+                scale[l] = light.attenuation(u, dist[l]);
+            }
+        }
         let mut out = [[0.0f32; LANES]; 3];
         let mut mask = 0u32;
         for l in 0..LANES {
@@ -482,6 +513,12 @@ impl HitLanes {
                 let with_spec = kd + self.ks[k][l] * power[l];
                 c[k] = if self.spec[l] { with_spec } else { kd };
                 c[k] *= light.intensity[k];
+            }
+            if attenuates {
+                c = c.map(|x| x * scale[l]);
+                if !c.iter().all(|x| x.is_finite()) {
+                    c = [0.0; 3];
+                }
             }
             let lit =
                 valid[l] & (n_dot_l[l] > 0.0) & ((c[0] != 0.0) | (c[1] != 0.0) | (c[2] != 0.0));
@@ -500,6 +537,10 @@ impl HitLanes {
 /// [`shadow_ray`] from 8 spawn points toward `light`, in lanes: directions and `t_max`.
 #[inline(always)]
 fn shadow_rays8(spawn: &[[f32; LANES]; 3], light: &Light) -> ([[f32; LANES]; 3], [f32; LANES]) {
+    if let Emission::Directional { to_light } = light.emission {
+        let dir = to_light.to_array().map(|c| [c; LANES]);
+        return (dir, [f32::INFINITY; LANES]);
+    }
     let lp = light.position;
     let le = gamma(1) * lp.abs();
     let mut dir = [[0.0f32; LANES]; 3];
@@ -867,7 +908,9 @@ mod tests {
     #[test]
     fn a_light_behind_the_surface_sends_no_shadow_ray() {
         let mut scene = spheres();
-        scene.lights[0].position = glam::DVec3::new(0.0, -10.0, 0.0); // below the floor
+        scene.lights[0].kind = crate::scene::LightKind::Point {
+            position: glam::DVec3::new(0.0, -10.0, 0.0), // below the floor
+        };
         let world = World::load(&scene).unwrap();
         let settings = ShadeSettings::for_scene(&scene);
         let mut hits = scene_a_hits(&world);
@@ -889,10 +932,7 @@ mod tests {
             p: 0.0,
             alpha: 0.0,
         };
-        let light = Light {
-            position: Vec3::new(0.0, 0.0, 1.0),
-            intensity: Vec3::ONE,
-        };
+        let light = Light::point(Vec3::new(0.0, 0.0, 1.0), Vec3::ONE);
         // Grazing: n·l = 0.
         let (c, _) = direct_light(&light, &m, true, Vec3::ZERO, Vec3::X, Vec3::Z);
         assert!(c.is_finite());
@@ -903,6 +943,20 @@ mod tests {
         // Light at the hit point.
         let (c, _) = direct_light(&light, &m, true, light.position, Vec3::Z, Vec3::Z);
         assert_eq!(c, Vec3::ZERO);
+        // With inverse-square falloff: at the point, nothing; so near that 1/r² overflows the
+        // value, nothing rather than ∞ (which a mirror's 1 − α = 0 would make NaN).
+        let near = Light {
+            inverse_square: true,
+            ..light
+        };
+        let (c, _) = direct_light(&near, &m, true, near.position, Vec3::Z, Vec3::Z);
+        assert_eq!(c, Vec3::ZERO);
+        let p = near.position - Vec3::new(0.0, 0.0, 1e-30);
+        let (c, _) = direct_light(&near, &m, true, p, Vec3::Z, Vec3::Z);
+        assert_eq!(c, Vec3::ZERO);
+        let p = near.position - Vec3::new(0.0, 0.0, 0.5);
+        let (c, _) = direct_light(&near, &m, false, p, Vec3::Z, Vec3::Z);
+        assert_eq!(c, Vec3::splat(4.0), "kd·(n·l = 1)/0.5²");
     }
 
     #[test]
@@ -953,9 +1007,11 @@ mod tests {
     fn shadow_rays_split_into_passes_are_the_unsplit_rays() {
         let mut scene = spheres();
         scene.lights = (0..5)
-            .map(|i| crate::scene::PointLight {
-                position: glam::DVec3::new(-4.0 + 2.0 * i as f64, 4.0, -3.0 + i as f64),
-                intensity: Vec3::splat(0.3),
+            .map(|i| {
+                crate::scene::Light::point(
+                    glam::DVec3::new(-4.0 + 2.0 * i as f64, 4.0, -3.0 + i as f64),
+                    Vec3::splat(0.3),
+                )
             })
             .collect();
         let world = World::load(&scene).unwrap();
@@ -989,8 +1045,59 @@ mod tests {
         assert_eq!(joined.radiance, whole.radiance);
     }
 
+    /// Light sets for the kernel test: scene A's light; three point lights; and each SPEC §14
+    /// kind — inverse-square, directional, spots with and without penumbra, pointed so their
+    /// cones' edges cross the hits — alone and all together.
+    fn light_sets() -> Vec<Vec<crate::scene::Light>> {
+        use crate::scene::{Falloff, Light, LightKind};
+        use glam::DVec3;
+        let first = spheres().lights[0].clone();
+        let moved = |k: f64| {
+            let mut l = first.clone();
+            l.kind = LightKind::Point {
+                position: first.position().unwrap() + DVec3::new(3.0 * k, -1.0, 2.0),
+            };
+            l
+        };
+        let inverse_square = Light {
+            falloff: Falloff::InverseSquare,
+            intensity: Vec3::splat(20.0),
+            ..moved(0.5)
+        };
+        let directional = Light {
+            kind: LightKind::Directional {
+                direction: DVec3::new(0.3, -1.0, -0.4),
+            },
+            ..first.clone()
+        };
+        let spot = |penumbra: f64, falloff: Falloff| Light {
+            kind: LightKind::Spot {
+                position: DVec3::new(-1.0, 5.0, -4.0),
+                direction: DVec3::new(-0.5, -1.0, -0.8),
+                cone: 50.0,
+                penumbra,
+            },
+            intensity: Vec3::new(1.0, 0.7, 0.4),
+            falloff,
+        };
+        let kinds = vec![
+            inverse_square,
+            directional,
+            spot(20.0, Falloff::None),
+            spot(0.0, Falloff::InverseSquare),
+            spot(50.0, Falloff::None),
+        ];
+        let mut sets = vec![
+            vec![first.clone()],
+            vec![first.clone(), moved(1.0), moved(2.0)],
+        ];
+        sets.extend(kinds.iter().map(|l| vec![l.clone()]));
+        sets.push(kinds);
+        sets
+    }
+
     /// The shadow-ray kernels at every SIMD level against the scalar `shadow_radiance` and
-    /// `shadow_ray`, row for row, with one light and with three (and shadow passes split).
+    /// `shadow_ray`, row for row, for every [`light_sets`] set (and shadow passes split).
     #[test]
     fn shadow_ray_kernels_match_the_scalar_functions_bit_for_bit() {
         use crate::queue::RayQueue;
@@ -999,14 +1106,10 @@ mod tests {
             ClosestOut, ClosestRays, CompactHits, CompactOut, CompactRays, compact_hits,
             intersect_closest,
         };
-        for lights in [1, 3] {
+        for set in light_sets() {
+            let lights = set.len();
             let mut scene = spheres();
-            let first = scene.lights[0].clone();
-            for k in 1..lights {
-                let mut l = first.clone();
-                l.position += glam::DVec3::new(3.0 * k as f64, -1.0, 2.0);
-                scene.lights.push(l);
-            }
+            scene.lights = set;
             let world = World::load(&scene).unwrap();
             let settings = ShadeSettings::for_scene(&scene);
             let mut rng = Rng(3);
@@ -1053,6 +1156,22 @@ mod tests {
                     }
                 }
             }
+            assert!(!expected.is_empty(), "{lights} lights: no lit row");
+            // The spots' cones cross the hits: some rows in a penumbra (0 < factor < 1).
+            let partial = (0..hits.len())
+                .filter(|&h| {
+                    world.lights().iter().any(|l| {
+                        let soft = matches!(l.emission, Emission::Spot { inner, outer, .. } if inner < outer);
+                        let a = l.toward(hits.point[h]).map(|(u, d)| l.attenuation(u, d));
+                        soft && !l.inverse_square && a.is_some_and(|a| a > 0.0 && a < 1.0)
+                    })
+                })
+                .count();
+            let soft_spots = world.lights().iter().any(|l| {
+                matches!(l.emission, Emission::Spot { inner, outer, .. } if inner < outer)
+                    && !l.inverse_square
+            });
+            assert_eq!(soft_spots, partial > 0, "{partial} hits in a penumbra");
             let bits = |v: Vec3| v.to_array().map(f32::to_bits);
             for level in Level::supported() {
                 for budget in [usize::MAX, 1000] {

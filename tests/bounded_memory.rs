@@ -7,7 +7,7 @@ use std::path::Path;
 use glam::Vec3;
 use wavefront::output::{ImageMeta, ImageStream};
 use wavefront::queue::ShadowQueue;
-use wavefront::scene::PointLight;
+use wavefront::scene::Light;
 use wavefront::scene::builtin::spheres;
 use wavefront::schedule::{Observer, Queues, StageRun};
 use wavefront::{RenderOptions, Scene, Stage, Stats, World, render_into, render_observed};
@@ -18,18 +18,20 @@ fn scene_a_with_random_lights(n: usize) -> Scene {
     let mut scene = spheres();
     let mut rng = Rng(0x5eed_0040);
     scene.lights = (0..n)
-        .map(|_| PointLight {
-            position: Vec3::new(
-                rng.range(-8.0, 8.0),
-                rng.range(-1.0, 8.0),
-                rng.range(-12.0, 2.0),
+        .map(|_| {
+            Light::point(
+                Vec3::new(
+                    rng.range(-8.0, 8.0),
+                    rng.range(-1.0, 8.0),
+                    rng.range(-12.0, 2.0),
+                )
+                .as_dvec3(),
+                Vec3::new(
+                    rng.range(0.0, 0.05),
+                    rng.range(0.0, 0.05),
+                    rng.range(0.0, 0.05),
+                ),
             )
-            .as_dvec3(),
-            intensity: Vec3::new(
-                rng.range(0.0, 0.05),
-                rng.range(0.0, 0.05),
-                rng.range(0.0, 0.05),
-            ),
         })
         .collect();
     scene

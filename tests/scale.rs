@@ -12,7 +12,7 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3};
 use wavefront::scene::builtin::spheres;
-use wavefront::scene::{Camera, Material, MeshRef, Plane, PointLight, Scene, Sphere, TreeSource};
+use wavefront::scene::{Camera, Light, Material, MeshRef, Plane, Scene, Sphere, TreeSource};
 use wavefront_kit::oracle::{ImageDiff, compare_rgb8};
 use wavefront_kit::testkit::{
     Scratch, oracle_png_bytes, reference_error, render_png_bytes, sibenik_crop, sibenik_mesh,
@@ -122,10 +122,10 @@ fn cornell(dir: &Scratch, delta: DVec3) -> Scene {
             }
         })
         .collect();
-    s.lights = vec![PointLight {
-        position: DVec3::new(278.0, 540.0, 279.5) + delta,
-        intensity: Vec3::splat(0.9),
-    }];
+    s.lights = vec![Light::point(
+        DVec3::new(278.0, 540.0, 279.5) + delta,
+        Vec3::splat(0.9),
+    )];
     s.camera = Camera {
         eye: DVec3::new(278.0, 273.0, -800.0) + delta,
         u: Vec3::NEG_X,
@@ -244,10 +244,7 @@ fn coordinate_planes() -> Scene {
             material: 3,
         },
     ];
-    s.lights = vec![PointLight {
-        position: DVec3::new(5.0, 6.0, 4.0),
-        intensity: Vec3::ONE,
-    }];
+    s.lights = vec![Light::point(DVec3::new(5.0, 6.0, 4.0), Vec3::ONE)];
     // From (8, 4, 8) toward the origin's corner.
     let eye = DVec3::new(8.0, 4.0, 8.0);
     let w = eye.normalize().as_vec3();
@@ -319,10 +316,7 @@ fn thin_geometry_never_leaks_light() {
                 allow_empty: false,
             })
             .collect();
-        s.lights = vec![PointLight {
-            position: DVec3::new(0.1, 10.0, 0.2) + delta,
-            intensity: Vec3::ONE,
-        }];
+        s.lights = vec![Light::point(DVec3::new(0.1, 10.0, 0.2) + delta, Vec3::ONE)];
         // Inside the gap, looking along +x, a window a little taller than the gap.
         s.camera = Camera {
             eye: DVec3::new(-2.0, 0.5e-4, 0.0) + delta,

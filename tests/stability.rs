@@ -13,7 +13,7 @@ use wavefront::geometry::sphere::{intersect_naive, intersect_stable};
 use wavefront::mesh::TriangleMesh;
 use wavefront::queue::{HitColumns, PrimId, RayItem, RayQueue, SampleSlot};
 use wavefront::scene::builtin::spheres;
-use wavefront::scene::{Material, MeshRef, PointLight, RenderMode, Scene, Sphere, TreeSource};
+use wavefront::scene::{Light, Material, MeshRef, RenderMode, Scene, Sphere, TreeSource};
 use wavefront::stages::intersect::{ClosestOut, ClosestRays, intersect_closest};
 use wavefront::{RenderOptions, World, render};
 use wavefront_kit::testkit::Rng;
@@ -174,7 +174,7 @@ fn material(alpha: f32) -> Material {
 }
 
 /// A scene with only the given spheres and lights (everything else from scene A).
-fn sphere_scene(spheres_: Vec<Sphere>, lights: Vec<PointLight>) -> Scene {
+fn sphere_scene(spheres_: Vec<Sphere>, lights: Vec<Light>) -> Scene {
     let mut s = spheres();
     s.spheres = spheres_;
     s.planes.clear();
@@ -318,10 +318,10 @@ fn no_light_leaks_into_a_closed_thin_walled_box() {
         for method in [BuildMethod::Sah, BuildMethod::Midpoint] {
             let mut scene = sphere_scene(
                 vec![],
-                vec![PointLight {
-                    position: DVec3::new(0.3, 0.9, 1.7) * f64::from(size),
-                    intensity: Vec3::ONE,
-                }],
+                vec![Light::point(
+                    DVec3::new(0.3, 0.9, 1.7) * f64::from(size),
+                    Vec3::ONE,
+                )],
             );
             scene.materials = vec![material(0.0)];
             scene.meshes = vec![MeshRef {
@@ -429,14 +429,8 @@ fn no_nan_reaches_the_film_at_grazing_and_degenerate_shading() {
     scene.image.width = 64;
     scene.image.height = 64;
     scene.lights = vec![
-        PointLight {
-            position: DVec3::new(0.0, -2.0, -5.0),
-            intensity: Vec3::ONE,
-        },
-        PointLight {
-            position: DVec3::ZERO,
-            intensity: Vec3::ONE,
-        },
+        Light::point(DVec3::new(0.0, -2.0, -5.0), Vec3::ONE),
+        Light::point(DVec3::ZERO, Vec3::ONE),
     ];
     for m in &mut scene.materials {
         m.ks = Vec3::ONE;

@@ -5,8 +5,8 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec3};
 
 use super::{
-    Camera, ImageSettings, Material, MeshRef, Plane, PointLight, RenderMode, RenderSettings,
-    Robustness, Scene, Sphere, TreeSource,
+    Camera, ImageSettings, Light, Material, MeshRef, Plane, RenderMode, RenderSettings, Robustness,
+    Scene, Sphere, TreeSource,
 };
 use crate::error::SceneError;
 
@@ -79,10 +79,7 @@ pub fn spheres() -> Scene {
             mode: RenderMode::Shaded,
             robustness: Robustness::default(),
         },
-        lights: vec![PointLight {
-            position: v(-4.0, 4.0, -3.0),
-            intensity: Vec3::ONE,
-        }],
+        lights: vec![Light::point(v(-4.0, 4.0, -3.0), Vec3::ONE)],
         materials: vec![
             material("floor", Vec3::splat(0.2), Vec3::ONE, Vec3::ZERO, 0.0, 0.5),
             material(
@@ -165,10 +162,7 @@ pub fn sibenik(shadows: bool) -> Scene {
             mode: RenderMode::Shaded,
             robustness: Robustness::default(),
         },
-        lights: vec![PointLight {
-            position: DVec3::ZERO,
-            intensity: Vec3::ONE,
-        }],
+        lights: vec![Light::point(DVec3::ZERO, Vec3::ONE)],
         materials: vec![material(
             "white",
             Vec3::ZERO,

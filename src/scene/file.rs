@@ -17,8 +17,9 @@ use toml::Spanned;
 use super::camera_path::{CameraKey, Interpolation, Orbit};
 use super::lookat::LookAt;
 use super::{
-    Camera, CameraPath, ImageSettings, Material, MeshRef, Normals, OffsetMethod, Plane, PointLight,
-    RenderMode, RenderSettings, Robustness, Scene, Sphere, SphereTest, TreeSource, TriangleTest,
+    Camera, CameraPath, Falloff, ImageSettings, Light, LightKind, Material, MeshRef, Normals,
+    OffsetMethod, Plane, RenderMode, RenderSettings, Robustness, Scene, Sphere, SphereTest,
+    TreeSource, TriangleTest,
 };
 use crate::error::{SceneError, short};
 
@@ -80,7 +81,7 @@ struct RawScene {
     camera: Spanned<RawCamera>,
     render: Option<RawRender>,
     #[serde(default)]
-    light: Vec<RawLight>,
+    light: Vec<Spanned<RawLight>>,
     #[serde(default)]
     material: BTreeMap<String, Spanned<RawMaterial>>,
     #[serde(default)]
@@ -169,8 +170,12 @@ struct RawRender {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct RawLight {
-    position: V3,
+    position: Option<V3>,
     intensity: Option<V3>,
+    falloff: Option<Spanned<String>>,
+    direction: Option<V3>,
+    cone: Option<Spanned<f64>>,
+    penumbra: Option<Spanned<f64>>,
 }
 
 #[derive(Deserialize)]
@@ -372,6 +377,125 @@ impl Cx<'_> {
         Ok(c)
     }
 
+    /// `[[light]]` number `i` (SPEC §14): `position` alone is a point light, `direction` alone a
+    /// directional one, both with `cone` (and optionally `penumbra`) a spot light; any other
+    /// combination is an error naming the key that does not belong.
+    fn light(&self, l: &Spanned<RawLight>, i: usize) -> Result<Light, SceneError> {
+        let key = |k: &str| format!("light[{i}].{k}");
+        let r = l.get_ref();
+        let intensity = self.colour(r.intensity.as_ref(), &key("intensity"), Vec3::ONE)?;
+        let falloff = match &r.falloff {
+            Some(f) => self.choice(
+                f,
+                &key("falloff"),
+                &[
+                    ("none", Falloff::None),
+                    ("inverse-square", Falloff::InverseSquare),
+                ],
+            )?,
+            None => Falloff::None,
+        };
+        let position = match &r.position {
+            Some(p) => Some(self.position(p, &key("position"))?),
+            None => None,
+        };
+        let direction = match &r.direction {
+            Some(d) => {
+                let v = self.dvec3(d, &key("direction"))?;
+                if v == DVec3::ZERO {
+                    return Err(self.err(d.span(), key("direction"), "must be a non-zero vector"));
+                }
+                Some((v, d.span()))
+            }
+            None => None,
+        };
+        let degrees = |v: &Spanned<f64>, k: &str| self.finite(v, &key(k));
+        let kind = match (position, direction, &r.cone) {
+            (Some(position), None, None) => LightKind::Point { position },
+            (None, Some((direction, _)), None) => LightKind::Directional { direction },
+            (Some(position), Some((direction, _)), Some(c)) => {
+                let cone = degrees(c, "cone")?;
+                if !(cone > 0.0 && cone < 180.0) {
+                    let msg = format!(
+                        "{} must be an angle in degrees with 0 < cone < 180",
+                        short(cone)
+                    );
+                    return Err(self.err(c.span(), key("cone"), msg));
+                }
+                let penumbra = match &r.penumbra {
+                    Some(p) => {
+                        let x = degrees(p, "penumbra")?;
+                        if !(0.0..=cone).contains(&x) {
+                            let msg = format!(
+                                "{} must be an angle in degrees with 0 ≤ penumbra ≤ cone ({})",
+                                short(x),
+                                short(cone)
+                            );
+                            return Err(self.err(p.span(), key("penumbra"), msg));
+                        }
+                        x
+                    }
+                    None => 0.0,
+                };
+                LightKind::Spot {
+                    position,
+                    direction,
+                    cone,
+                    penumbra,
+                }
+            }
+            (None, None, _) => {
+                return Err(self.err(
+                    l.span(),
+                    key("position"),
+                    "a light needs `position` (a point or spot light) or `direction` (a directional light)",
+                ));
+            }
+            (Some(_), Some((_, span)), None) => {
+                return Err(self.err(
+                    span,
+                    key("direction"),
+                    "a light with both `position` and `direction` is a spot light and needs `cone`",
+                ));
+            }
+            (None, Some(_), Some(c)) => {
+                return Err(self.err(
+                    c.span(),
+                    key("cone"),
+                    "a spot light needs `position` as well as `direction`",
+                ));
+            }
+            (Some(_), None, Some(c)) => {
+                return Err(self.err(
+                    c.span(),
+                    key("cone"),
+                    "a spot light needs `direction` (its axis) as well as `position`",
+                ));
+            }
+        };
+        if let (Some(p), None) = (&r.penumbra, &r.cone) {
+            return Err(self.err(
+                p.span(),
+                key("penumbra"),
+                "only a spot light (`position`, `direction` and `cone`) has a penumbra",
+            ));
+        }
+        if let (LightKind::Directional { .. }, Falloff::InverseSquare, Some(f)) =
+            (&kind, falloff, &r.falloff)
+        {
+            return Err(self.err(
+                f.span(),
+                key("falloff"),
+                "a directional light has no falloff (it is infinitely far)",
+            ));
+        }
+        Ok(Light {
+            kind,
+            intensity,
+            falloff,
+        })
+    }
+
     fn int(&self, v: &Spanned<i64>, key: &str, lo: i64, hi: i64) -> Result<u32, SceneError> {
         let x = *v.get_ref();
         if x < lo || x > hi {
@@ -428,14 +552,7 @@ impl Cx<'_> {
 
         let mut lights = Vec::with_capacity(raw.light.len());
         for (i, l) in raw.light.iter().enumerate() {
-            lights.push(PointLight {
-                position: self.position(&l.position, &format!("light[{i}].position"))?,
-                intensity: self.colour(
-                    l.intensity.as_ref(),
-                    &format!("light[{i}].intensity"),
-                    Vec3::ONE,
-                )?,
-            });
+            lights.push(self.light(l, i)?);
         }
 
         // Materials in declaration order, so indices follow the file.

@@ -13,7 +13,7 @@ use glam::{DVec3, Vec3};
 
 use super::lookat::LookAt;
 use super::{
-    ImageSettings, Material, MeshRef, PointLight, RenderMode, RenderSettings, Robustness, Scene,
+    ImageSettings, Light, Material, MeshRef, RenderMode, RenderSettings, Robustness, Scene,
     TreeSource,
 };
 use crate::error::{LoadError, SceneError};
@@ -101,10 +101,7 @@ pub fn bare_mesh(path: &Path, (width, height): (u32, u32)) -> Result<Scene, Load
             mode: RenderMode::Shaded,
             robustness: Robustness::default(),
         },
-        lights: vec![PointLight {
-            position: view.eye,
-            intensity: Vec3::ONE,
-        }],
+        lights: vec![Light::point(view.eye, Vec3::ONE)],
         materials: vec![Material {
             name: "grey".into(),
             ka: Vec3::splat(0.1),

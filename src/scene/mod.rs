@@ -125,13 +125,72 @@ pub struct RenderSettings {
     pub robustness: Robustness,
 }
 
-/// A point light without falloff.
+/// A light (`[[light]]`, SPEC §14): a point, directional or spot light, with or without
+/// distance falloff.
 #[derive(Clone, Debug, PartialEq)]
-pub struct PointLight {
-    /// Position `q` (world coordinates, f64 as read).
-    pub position: DVec3,
+pub struct Light {
+    /// Where it is and where it points.
+    pub kind: LightKind,
     /// Intensity `I` per channel.
     pub intensity: Vec3,
+    /// Distance falloff (never for a directional light).
+    pub falloff: Falloff,
+}
+
+/// The kinds of light (SPEC §14), in world coordinates as read (f64).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum LightKind {
+    /// A point light at `position` (`q`), shining every way.
+    Point {
+        /// Position (world coordinates).
+        position: DVec3,
+    },
+    /// A directional light (the sun): every point is lit along `l = −normalize(direction)`.
+    Directional {
+        /// The direction the light travels (non-zero, finite; not necessarily unit).
+        direction: DVec3,
+    },
+    /// A spot light at `position` pointing along `direction`: full intensity within the half
+    /// angle `(cone − penumbra) / 2` of its axis, none beyond `cone / 2`, smoothstep between.
+    Spot {
+        /// Position (world coordinates).
+        position: DVec3,
+        /// The axis (non-zero, finite; not necessarily unit).
+        direction: DVec3,
+        /// Full cone angle θ in degrees, 0 < θ < 180.
+        cone: f64,
+        /// Penumbra φ in degrees, 0 ≤ φ ≤ θ.
+        penumbra: f64,
+    },
+}
+
+/// A light's distance falloff (`falloff`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Falloff {
+    /// None (`"none"`, the default and SPEC §2's point light).
+    #[default]
+    None,
+    /// `1 / r²` at distance `r` (`"inverse-square"`).
+    InverseSquare,
+}
+
+impl Light {
+    /// A point light at `position` without falloff (SPEC §2's light).
+    pub fn point(position: DVec3, intensity: Vec3) -> Light {
+        Light {
+            kind: LightKind::Point { position },
+            intensity,
+            falloff: Falloff::None,
+        }
+    }
+
+    /// The light's position: `None` for a directional light.
+    pub fn position(&self) -> Option<DVec3> {
+        match self.kind {
+            LightKind::Point { position } | LightKind::Spot { position, .. } => Some(position),
+            LightKind::Directional { .. } => None,
+        }
+    }
 }
 
 /// A Whitted material: `L = (1 − α)(La + Ld + Ls) + α·Lm`.
@@ -250,8 +309,8 @@ pub struct Scene {
     pub camera_path: Option<CameraPath>,
     /// Render settings.
     pub render: RenderSettings,
-    /// Point lights.
-    pub lights: Vec<PointLight>,
+    /// Lights, in file order.
+    pub lights: Vec<Light>,
     /// Materials, referenced by index.
     pub materials: Vec<Material>,
     /// Spheres.
@@ -271,7 +330,9 @@ impl Scene {
         s.camera.eye += delta;
         s.camera_path = s.camera_path.as_ref().map(|p| p.translated(delta));
         for l in &mut s.lights {
-            l.position += delta;
+            if let LightKind::Point { position } | LightKind::Spot { position, .. } = &mut l.kind {
+                *position += delta;
+            }
         }
         for sp in &mut s.spheres {
             sp.center += delta;

@@ -103,11 +103,7 @@ impl Info {
         }
         let _ = writeln!(t, "lights: {}", s.lights.len());
         for (k, l) in s.lights.iter().enumerate() {
-            let _ = writeln!(
-                t,
-                "  {k}: position {} intensity {}",
-                l.position, l.intensity
-            );
+            let _ = writeln!(t, "  {k}: {} intensity {}", light_text(l), l.intensity);
         }
         let _ = writeln!(t, "materials: {}", s.materials.len());
         for (m, n) in s.materials.iter().zip(&self.faces) {
@@ -153,8 +149,7 @@ impl Info {
                        "window": {"l": c.l, "r": c.r, "b": c.b, "t": c.t}, "distance": c.d},
             "camera_path": s.camera_path.as_ref().map(|p| json!({
                 "first_frame": p.first_frame(), "last_frame": p.last_frame()})),
-            "lights": s.lights.iter().map(|l| json!({
-                "position": v3(l.position), "intensity": f3(l.intensity)})).collect::<Vec<_>>(),
+            "lights": s.lights.iter().map(light_json).collect::<Vec<_>>(),
             "materials": s.materials.iter().zip(&self.faces).map(|(m, n)| json!({
                 "name": m.name, "ka": f3(m.ka), "kd": f3(m.kd), "ks": f3(m.ks),
                 "p": m.p, "alpha": m.alpha, "faces": n})).collect::<Vec<_>>(),
@@ -167,5 +162,52 @@ impl Info {
             "triangles": self.meshes.iter().map(|m| m.triangles).sum::<usize>(),
             "pipeline": Pipeline::for_scene(s).to_string(),
         })
+    }
+}
+
+/// A light's kind, position and direction as `info` prints them.
+fn light_text(l: &wavefront::scene::Light) -> String {
+    use wavefront::scene::{Falloff, LightKind};
+    let falloff = match l.falloff {
+        Falloff::None => "",
+        Falloff::InverseSquare => ", inverse-square falloff",
+    };
+    match l.kind {
+        LightKind::Point { position } => format!("point at {position}{falloff},"),
+        LightKind::Directional { direction } => format!("directional along {direction},"),
+        LightKind::Spot {
+            position,
+            direction,
+            cone,
+            penumbra,
+        } => format!(
+            "spot at {position} along {direction}, cone {cone}°, penumbra {penumbra}°{falloff},"
+        ),
+    }
+}
+
+/// A light as `info --json` gives it: `kind`, `position` and `direction` where it has them,
+/// `cone` and `penumbra` for a spot, `falloff`, `intensity`.
+fn light_json(l: &wavefront::scene::Light) -> Value {
+    use wavefront::scene::{Falloff, LightKind};
+    let v3 = |v: DVec3| json!([v.x, v.y, v.z]);
+    let f3 = |v: glam::Vec3| json!([v.x, v.y, v.z]);
+    let falloff = match l.falloff {
+        Falloff::None => "none",
+        Falloff::InverseSquare => "inverse-square",
+    };
+    match l.kind {
+        LightKind::Point { position } => json!({"kind": "point", "position": v3(position),
+            "falloff": falloff, "intensity": f3(l.intensity)}),
+        LightKind::Directional { direction } => json!({"kind": "directional",
+            "direction": v3(direction), "falloff": falloff, "intensity": f3(l.intensity)}),
+        LightKind::Spot {
+            position,
+            direction,
+            cone,
+            penumbra,
+        } => json!({"kind": "spot",
+            "position": v3(position), "direction": v3(direction), "cone": cone,
+            "penumbra": penumbra, "falloff": falloff, "intensity": f3(l.intensity)}),
     }
 }

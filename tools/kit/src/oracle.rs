@@ -16,7 +16,7 @@ use rayon::prelude::*;
 
 use wavefront::mesh::ObjMesh;
 use wavefront::sampling::sample_offset;
-use wavefront::scene::{RenderMode, Scene};
+use wavefront::scene::{Falloff, Light, LightKind, RenderMode, Scene};
 
 /// A rendered image in linear radiance, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
@@ -298,18 +298,17 @@ impl<'a> Oracle<'a> {
 
         let mut local = m.ka * render.ambient.as_dvec3();
         for light in &self.scene.lights {
-            let q = light.position;
-            let intensity = light.intensity.as_dvec3();
-            let to_light = q - p;
-            let dist = to_light.length();
-            if dist == 0.0 {
+            let Some((l, factor)) = light_at(light, p) else {
                 continue;
-            }
-            let l = to_light / dist;
+            };
+            let intensity = light.intensity.as_dvec3() * factor;
             let n_dot_l = n.dot(l);
             if render.shadows {
-                let to = q - off;
-                if n_dot_l <= 0.0 || self.occluded(off, to.normalize(), to.length()) {
+                let (dir, t_max) = match light.position() {
+                    Some(q) => ((q - off).normalize(), (q - off).length()),
+                    None => (l, f64::INFINITY),
+                };
+                if n_dot_l <= 0.0 || self.occluded(off, dir, t_max) {
                     continue;
                 }
             }
@@ -380,6 +379,48 @@ impl<'a> Oracle<'a> {
                 .any(|&(p, n, _)| hit_plane(o, d, p, n, t_max).is_some())
             || self.bvh.closest(&self.triangles, o, d, t_max).is_some()
     }
+}
+
+/// SPEC §14 in f64, written independently of the renderer's: the unit vector from `p` toward
+/// `light` and the factor on its intensity there (spot cone by the angle from the axis through
+/// `acos`, `1/r²` falloff); `None` at a point or spot light's own position.
+fn light_at(light: &Light, p: DVec3) -> Option<(DVec3, f64)> {
+    let (l, dist, mut factor) = match light.kind {
+        LightKind::Directional { direction } => (-direction.normalize(), f64::INFINITY, 1.0),
+        LightKind::Point { position } | LightKind::Spot { position, .. } => {
+            let dist = (position - p).length();
+            if dist == 0.0 {
+                return None;
+            }
+            ((position - p) / dist, dist, 1.0)
+        }
+    };
+    if let LightKind::Spot {
+        direction,
+        cone,
+        penumbra,
+        ..
+    } = light.kind
+    {
+        let angle = (-l)
+            .dot(direction.normalize())
+            .clamp(-1.0, 1.0)
+            .acos()
+            .to_degrees();
+        let (outer, inner) = (cone / 2.0, (cone - penumbra) / 2.0);
+        factor = if angle <= inner {
+            1.0
+        } else if angle >= outer {
+            0.0
+        } else {
+            let t = (outer - angle) / (outer - inner);
+            t * t * (3.0 - 2.0 * t)
+        };
+    }
+    if light.falloff == Falloff::InverseSquare {
+        factor /= dist * dist;
+    }
+    Some((l, factor))
 }
 
 /// The nearest root `0 < t < t_max` of `|o + t·d − c|² = r²` (`d` unit).
