@@ -631,7 +631,8 @@ fn check_mesh_path(scene: &Scene, m: &crate::scene::MeshRef) -> Result<(), LoadE
     if crate::input::is_absent(&m.path) {
         return Err(crate::scene::builtin::missing_scene_mesh(scene, &m.path).into());
     }
-    Ok(crate::mesh::check_format(&m.path)?)
+    crate::mesh::check_format(&m.path)?;
+    Ok(())
 }
 
 /// After a mesh is read: it has triangles, unless its `[[mesh]]` says `allow_empty = true`.
