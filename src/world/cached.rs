@@ -48,7 +48,22 @@ pub struct Setup {
 impl World {
     /// [`World::load_timed`] through a tree cache (`None`: build without one). A corrupt,
     /// truncated or stale entry is rebuilt and overwritten, with a warning in [`Setup`].
+    ///
+    /// The warnings start with the scene's own ([`crate::scene::mtl::load_warnings`]: MTL keys
+    /// and glTF textures not used, scene materials no primitive uses).
     pub fn load_cached(
+        scene: &Scene,
+        cache: Option<&TreeCache>,
+    ) -> Result<(World, Setup), LoadError> {
+        let (world, mut setup) = World::load_cached_quietly(scene, cache)?;
+        let mut warnings = crate::scene::mtl::load_warnings(scene);
+        warnings.append(&mut setup.warnings);
+        setup.warnings = warnings;
+        Ok((world, setup))
+    }
+
+    /// [`World::load_cached`] without the scene's own warnings.
+    fn load_cached_quietly(
         scene: &Scene,
         cache: Option<&TreeCache>,
     ) -> Result<(World, Setup), LoadError> {
