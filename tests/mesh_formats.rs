@@ -125,14 +125,17 @@ fn a_gltf_node_transform_renders_within_the_oracles_tolerance_of_the_obj() {
             }
         }
     }
-    let gltf = wavefront::scene::file::parse(&scene_text("t.gltf", "m"), &dir.join("g.toml"))
-        .unwrap();
+    let gltf =
+        wavefront::scene::file::parse(&scene_text("t.gltf", "m"), &dir.join("g.toml")).unwrap();
     let obj =
         wavefront::scene::file::parse(&scene_text("t.obj", "m"), &dir.join("o.toml")).unwrap();
     let d = compare_rgb8(&render_png_bytes(&gltf), &oracle_png_bytes(&obj));
     println!("glTF render vs the OBJ's oracle: {d}");
     // tests/oracle.rs's tolerance: 99.9% of pixels within 1/255, 99.99% within 3/255.
-    assert!(d.over_1 * 1000 <= d.pixels && d.over_3 * 10_000 <= d.pixels, "{d}");
+    assert!(
+        d.over_1 * 1000 <= d.pixels && d.over_3 * 10_000 <= d.pixels,
+        "{d}"
+    );
     // And the image is not empty: the mesh covers a good share of it.
     let rgb = render_png_bytes(&gltf);
     let lit = rgb.chunks_exact(3).filter(|p| p != &[0, 0, 0]).count();
@@ -158,8 +161,7 @@ fn gltf_materials_map_to_blinn_phong_and_textures_are_a_warning() {
         );
     dir.write("m.gltf", &text);
     let scene =
-        wavefront::scene::file::parse(&scene_text("m.gltf", "gltf"), &dir.join("s.toml"))
-            .unwrap();
+        wavefront::scene::file::parse(&scene_text("m.gltf", "gltf"), &dir.join("s.toml")).unwrap();
     let by_name = |n: &str| {
         scene
             .materials
@@ -227,7 +229,11 @@ fn the_camera_can_come_from_the_gltf_file() {
     );
     let scene = wavefront::scene::file::parse(&toml, &dir.join("s.toml")).unwrap();
     let c = &scene.camera;
-    assert!((c.eye - DVec3::new(1.0, 2.0, 10.0)).length() < 1e-6, "{:?}", c.eye);
+    assert!(
+        (c.eye - DVec3::new(1.0, 2.0, 10.0)).length() < 1e-6,
+        "{:?}",
+        c.eye
+    );
     // w points back from the view direction (−x): +x.
     assert!((c.w - glam::Vec3::X).length() < 1e-6, "{:?}", c.w);
     assert!((c.v - glam::Vec3::Y).length() < 1e-6, "{:?}", c.v);
@@ -274,8 +280,8 @@ fn unused_mtl_keys_are_one_warning_each_with_their_line() {
         "m.obj",
         "mtllib m.mtl\nv 0 0 0\nv 1 0 0\nv 0 1 0\nusemtl a\nf 1 2 3\nusemtl b\nf 1 3 2\n",
     );
-    let scene = wavefront::scene::file::parse(&scene_text("m.obj", "mtl"), &dir.join("s.toml"))
-        .unwrap();
+    let scene =
+        wavefront::scene::file::parse(&scene_text("m.obj", "mtl"), &dir.join("s.toml")).unwrap();
     let (_, setup) = World::load_cached(&scene, None).unwrap();
     let mtl = Path::new(&dir.join("m.mtl")).display().to_string();
     let keys: Vec<&String> = setup
@@ -292,5 +298,10 @@ fn unused_mtl_keys_are_one_warning_each_with_their_line() {
         );
     }
     // Used keys (Kd, Ks, illum, newmtl) are not warned about.
-    assert!(!setup.warnings.iter().any(|w| w.contains("`Kd`") || w.contains("`illum`")));
+    assert!(
+        !setup
+            .warnings
+            .iter()
+            .any(|w| w.contains("`Kd`") || w.contains("`illum`"))
+    );
 }

@@ -38,10 +38,42 @@ pub struct GltfFile {
 /// Parses the glTF document in `bytes` (JSON or GLB) and checks it (the crate's validation:
 /// indices in range, required extensions supported).
 fn document(bytes: &[u8], path: &Path) -> Result<::gltf::Gltf, MeshError> {
-    ::gltf::Gltf::from_slice(bytes).map_err(|e| {
+    let invalid = |e: ::gltf::Error| {
         let text = e.to_string();
-        let line: String = text.lines().next().unwrap_or("").chars().take(200).collect();
+        let line: String = text
+            .lines()
+            .next()
+            .unwrap_or("")
+            .chars()
+            .take(200)
+            .collect();
         fail(path, format!("not a valid glTF 2.0 file: {line}"))
+    };
+    let unchecked = ::gltf::Gltf::from_slice_without_validation(bytes).map_err(invalid)?;
+    let root = unchecked.document.into_json();
+    // gltf-json 1.4.1's validation indexes a primitive's POSITION accessor before checking that
+    // it exists (a panic on a bad file): check those indices first.
+    for (mi, m) in root.meshes.iter().enumerate() {
+        for (pi, p) in m.primitives.iter().enumerate() {
+            for (semantic, index) in &p.attributes {
+                if index.value() >= root.accessors.len() {
+                    return Err(fail(
+                        path,
+                        format!(
+                            "not a valid glTF 2.0 file: mesh {mi} primitive {pi}: attribute \
+                             {semantic:?} names accessor {}, of {}",
+                            index.value(),
+                            root.accessors.len()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
+    let document = ::gltf::Document::from_json(root).map_err(invalid)?;
+    Ok(::gltf::Gltf {
+        document,
+        blob: unchecked.blob,
     })
 }
 
@@ -79,7 +111,10 @@ fn place<'a>(b: &::gltf::Buffer<'a>, path: &Path) -> Result<Place<'a>, MeshError
         ::gltf::buffer::Source::Bin => Ok(Place::Bin),
         ::gltf::buffer::Source::Uri(uri) if uri.starts_with("data:") => {
             let (head, data) = uri.split_once(',').ok_or_else(|| {
-                fail(path, format!("buffer {}: a data URI without data", b.index()))
+                fail(
+                    path,
+                    format!("buffer {}: a data URI without data", b.index()),
+                )
             })?;
             if !head.ends_with(";base64") {
                 return Err(fail(
@@ -96,7 +131,10 @@ fn place<'a>(b: &::gltf::Buffer<'a>, path: &Path) -> Result<Place<'a>, MeshError
             if name.contains("://") {
                 return Err(fail(
                     path,
-                    format!("buffer {}: only local files are read, not {name:?}", b.index()),
+                    format!(
+                        "buffer {}: only local files are read, not {name:?}",
+                        b.index()
+                    ),
                 ));
             }
             let dir = path.parent().unwrap_or(Path::new(""));
@@ -428,7 +466,10 @@ pub fn mesh(file: &GltfFile, path: &Path, what: ObjRead) -> Result<ObjMesh, Mesh
             if tris.len() % 3 != 0 {
                 return Err(fail(
                     path,
-                    format!("{at}: {} indices is not a whole number of triangles", tris.len()),
+                    format!(
+                        "{at}: {} indices is not a whole number of triangles",
+                        tris.len()
+                    ),
                 ));
             }
             if let Some(&bad) = tris.iter().find(|&&i| i as usize >= n) {
@@ -464,9 +505,10 @@ pub fn mesh(file: &GltfFile, path: &Path, what: ObjRead) -> Result<ObjMesh, Mesh
                 };
                 let normal_matrix = DMat3::from_mat4(*world).inverse().transpose();
                 match given {
-                    Some(ns) if ns.len() == n && normal_matrix.is_finite() => out
-                        .normals
-                        .extend(ns.iter().map(|v| unit((normal_matrix * DVec3::from(*v)).into()))),
+                    Some(ns) if ns.len() == n && normal_matrix.is_finite() => out.normals.extend(
+                        ns.iter()
+                            .map(|v| unit((normal_matrix * DVec3::from(*v)).into())),
+                    ),
                     _ => out.normals.extend(area_weighted_normals(
                         &out.positions,
                         &out.indices[first..],

@@ -121,13 +121,20 @@ pub fn parse(bytes: &[u8], path: &Path, what: ObjRead) -> Result<ObjMesh, MeshEr
         .read_header(&mut reader)
         .map_err(|e| ply_error(path, &e, None))?;
     let ascii = header.encoding == Encoding::Ascii;
+    // Lines up to and including `end_header` (ASCII files: the payload's first line follows).
+    let header_lines = match bytes.windows(11).position(|w| w == b"end_header\n") {
+        Some(at) => bytes[..at].iter().filter(|&&b| b == b'\n').count() + 1,
+        None => 0,
+    };
     let vertex_def = header
         .elements
         .get("vertex")
         .ok_or_else(|| fail("no `vertex` element in the header".to_owned()))?;
     for axis in ["x", "y", "z"] {
         if !vertex_def.properties.contains_key(axis) {
-            return Err(fail(format!("the `vertex` element has no `{axis}` property")));
+            return Err(fail(format!(
+                "the `vertex` element has no `{axis}` property"
+            )));
         }
     }
     let normals_given = ["nx", "ny", "nz"]
@@ -152,7 +159,15 @@ pub fn parse(bytes: &[u8], path: &Path, what: ObjRead) -> Result<ObjMesh, MeshEr
                             .to_owned(),
                     ));
                 }
-                face_line = reader.line() + 1;
+                // Each element before it is one line of an ASCII file.
+                face_line = header_lines
+                    + header
+                        .elements
+                        .values()
+                        .take_while(|d| d.name != "face")
+                        .map(|d| d.count)
+                        .sum::<usize>()
+                    + 1;
                 faces = Parser::<Face>::new()
                     .read_payload_for_element(&mut reader, def, &header)
                     .map_err(|e| ply_error(path, &e, Some(&element("faces"))))?;
@@ -208,19 +223,20 @@ pub fn parse(bytes: &[u8], path: &Path, what: ObjRead) -> Result<ObjMesh, MeshEr
         }
     }
     if what.normals {
-        mesh.normals = if normals_given && vertices.iter().all(|v| v.n.iter().all(|c| c.is_finite())) {
-            vertices.iter().map(|v| unit(v.n)).collect()
-        } else {
-            area_weighted_normals(&mesh.positions, &mesh.indices, 0)
-        };
+        mesh.normals =
+            if normals_given && vertices.iter().all(|v| v.n.iter().all(|c| c.is_finite())) {
+                vertices.iter().map(|v| unit(v.n)).collect()
+            } else {
+                area_weighted_normals(&mesh.positions, &mesh.indices, 0)
+            };
     }
     Ok(mesh)
 }
 
 /// `ply-rs-bw`'s error as one line naming the file, the line (when it gives one) and `element`.
 fn ply_error(path: &Path, e: &ply_rs_bw::parser::ParseError, element: Option<&str>) -> MeshError {
-    // Its messages may span lines and quote a whole data line: keep the other lines, joined and
-    // clipped.
+    // Its messages may span lines and quote a whole data line: keep the innermost cause (after
+    // the last `Error:`), clipped.
     let text = e.to_string();
     let text = match e.line() {
         Some(line) => text
@@ -229,17 +245,28 @@ fn ply_error(path: &Path, e: &ply_rs_bw::parser::ParseError, element: Option<&st
             .to_owned(),
         None => text,
     };
-    let parts: Vec<&str> = text
-        .lines()
-        .map(|l| l.trim().trim_end_matches('.'))
-        .filter(|l| !l.is_empty() && !l.starts_with("String:"))
-        .collect();
+    let cause = text.rsplit("Error:").next().unwrap_or("");
+    let cause = cause.split_whitespace().collect::<Vec<_>>().join(" ");
     let mut message = String::from("ply: ");
     if let Some(el) = element {
         message.push_str(&format!("in the {el}: "));
     }
-    message.extend(parts.join(": ").chars().take(200));
-    let message = message.escape_debug().to_string();
+    if text.contains("Error:") {
+        message.push_str("bad data: ");
+    }
+    message.extend(cause.trim_end_matches('.').chars().take(200));
+    // Control characters of a binary file are escaped, so the error stays one line.
+    let message: String = message
+        .chars()
+        .flat_map(|c| {
+            let escaped: Vec<char> = if c.is_control() {
+                c.escape_default().collect()
+            } else {
+                vec![c]
+            };
+            escaped
+        })
+        .collect();
     match e.line() {
         Some(line) => MeshError::Parse {
             path: path.to_path_buf(),

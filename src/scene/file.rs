@@ -536,7 +536,8 @@ impl Cx<'_> {
             let format = crate::mesh::check_format(&path)
                 .map_err(|e| self.err(m.path.span(), format!("mesh[{i}].path"), e.to_string()))?;
             let from_file = match (m.material.get_ref().as_str(), format) {
-                ("mtl", crate::mesh::Format::Obj) | ("gltf", crate::mesh::Format::Gltf)
+                ("mtl", crate::mesh::Format::Obj)
+                | ("gltf", crate::mesh::Format::Gltf)
                 | ("gltf", crate::mesh::Format::Glb) => true,
                 (name @ ("mtl" | "gltf"), f) => {
                     return Err(self.err(
@@ -547,7 +548,11 @@ impl Cx<'_> {
                              file (use a scene material{})",
                             if name == "mtl" { "OBJ (MTL)" } else { "glTF" },
                             path.display(),
-                            if f == crate::mesh::Format::Obj { "an" } else { "a" },
+                            if f == crate::mesh::Format::Obj {
+                                "an"
+                            } else {
+                                "a"
+                            },
                             f.name(),
                             if matches!(f, crate::mesh::Format::Gltf | crate::mesh::Format::Glb) {
                                 ", or \"gltf\""
@@ -902,7 +907,9 @@ impl Cx<'_> {
             ));
         }
         let from = match &c.from {
-            Some(f) => self.direction(&self.from_direction(f)?, "camera.from")?.as_dvec3(),
+            Some(f) => self
+                .direction(&self.from_direction(f)?, "camera.from")?
+                .as_dvec3(),
             None => super::framing::DEFAULT_FROM,
         };
         let fov_y = match &c.fov_y {

@@ -92,17 +92,18 @@ pub fn bind(
         match tokens.next() {
             Some("mtllib") => {
                 for lib in tokens {
-                    let (lib_materials, unused) = read_library_noting(&dir.join(lib)).map_err(|e| match e {
-                        SceneError::MeshIo { source, .. } => invalid(
-                            line,
-                            "mtllib",
-                            format!(
-                                "cannot read material library {lib}: {}",
-                                crate::error::chain(&source)
+                    let (lib_materials, unused) =
+                        read_library_noting(&dir.join(lib)).map_err(|e| match e {
+                            SceneError::MeshIo { source, .. } => invalid(
+                                line,
+                                "mtllib",
+                                format!(
+                                    "cannot read material library {lib}: {}",
+                                    crate::error::chain(&source)
+                                ),
                             ),
-                        ),
-                        e => e,
-                    })?;
+                            e => e,
+                        })?;
                     warnings.extend(unused);
                     for m in &lib_materials {
                         names.insert(m.name.clone(), index(materials));

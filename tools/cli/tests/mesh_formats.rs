@@ -49,7 +49,10 @@ fn ply_renders_byte_identically_to_the_obj_of_the_same_faces() {
     }
     for normals in ["geometric", "vertex"] {
         dir.write("obj.toml", &scene("m.obj", normals));
-        ok(&run(&dir, &["render", "obj.toml", "-o", "obj.png", "--no-cache"]));
+        ok(&run(
+            &dir,
+            &["render", "obj.toml", "-o", "obj.png", "--no-cache"],
+        ));
         let reference = std::fs::read(dir.join("obj.png")).unwrap();
         for (name, _) in plys {
             dir.write("ply.toml", &scene(name, normals));
@@ -67,8 +70,14 @@ fn ply_renders_byte_identically_to_the_obj_of_the_same_faces() {
         }
     }
     // Bare: `wavefront render mesh.ply` frames it as `render mesh.obj` does.
-    ok(&run(&dir, &["render", "m.obj", "-o", "bare-obj.png", "--size", "64x48"]));
-    ok(&run(&dir, &["render", "be.ply", "-o", "bare-ply.png", "--size", "64x48"]));
+    ok(&run(
+        &dir,
+        &["render", "m.obj", "-o", "bare-obj.png", "--size", "64x48"],
+    ));
+    ok(&run(
+        &dir,
+        &["render", "be.ply", "-o", "bare-ply.png", "--size", "64x48"],
+    ));
     assert_eq!(
         std::fs::read(dir.join("bare-obj.png")).unwrap(),
         std::fs::read(dir.join("bare-ply.png")).unwrap(),
