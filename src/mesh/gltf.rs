@@ -463,7 +463,7 @@ pub fn mesh(file: &GltfFile, path: &Path, what: ObjRead) -> Result<ObjMesh, Mesh
                 Some(a) => indices(&a, &file.buffers, path)?,
                 None => (0..n as u32).collect(),
             };
-            if tris.len() % 3 != 0 {
+            if !tris.len().is_multiple_of(3) {
                 return Err(fail(
                     path,
                     format!(

@@ -416,7 +416,7 @@ impl Cx<'_> {
 
     fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
         let image = self.image(raw.image)?;
-        let from_gltf = self.from_gltf(&raw.camera)?;
+        let from_gltf = self.camera_from_gltf(&raw.camera)?;
         let auto = match from_gltf {
             Some(_) => None,
             None => self.auto_frame(&raw.camera)?,
@@ -908,7 +908,7 @@ impl Cx<'_> {
         }
         let from = match &c.from {
             Some(f) => self
-                .direction(&self.from_direction(f)?, "camera.from")?
+                .direction(&self.camera_from_direction(f)?, "camera.from")?
                 .as_dvec3(),
             None => super::framing::DEFAULT_FROM,
         };
@@ -920,7 +920,7 @@ impl Cx<'_> {
     }
 
     /// `camera.from` as a direction (three numbers).
-    fn from_direction(&self, f: &Spanned<toml::Value>) -> Result<V3, SceneError> {
+    fn camera_from_direction(&self, f: &Spanned<toml::Value>) -> Result<V3, SceneError> {
         let value = Arr3::deserialize(f.get_ref().clone())
             .map_err(|e| self.err(f.span(), "camera.from", e.to_string()))?;
         Ok(Spanned::new(f.span(), value))
@@ -929,7 +929,7 @@ impl Cx<'_> {
     /// `[camera] from = "gltf"` (SPEC §15): the span of the key when the camera comes from the
     /// first glTF mesh's file, `None` otherwise. No other camera key may be given with it but
     /// nothing else.
-    fn from_gltf(&self, raw: &Spanned<RawCamera>) -> Result<Option<Range<usize>>, SceneError> {
+    fn camera_from_gltf(&self, raw: &Spanned<RawCamera>) -> Result<Option<Range<usize>>, SceneError> {
         let c = raw.get_ref();
         let Some(from) = &c.from else { return Ok(None) };
         let Some(name) = from.get_ref().as_str() else {

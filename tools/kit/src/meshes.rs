@@ -234,11 +234,11 @@ impl PolyMesh {
     /// The `.glb` file.
     pub fn glb(&self, matrix: Option<[f64; 16]>) -> Vec<u8> {
         let mut json = self.gltf_json(None, matrix).into_bytes();
-        while json.len() % 4 != 0 {
+        while !json.len().is_multiple_of(4) {
             json.push(b' ');
         }
         let mut bin = self.gltf_buffer();
-        while bin.len() % 4 != 0 {
+        while !bin.len().is_multiple_of(4) {
             bin.push(0);
         }
         let total = 12 + 8 + json.len() + 8 + bin.len();
