@@ -82,7 +82,12 @@ fn every_gltf_form_reads_the_triangles_of_the_obj() {
 fn transform() -> [f64; 16] {
     // cos θ = 0.6, sin θ = 0.8: the half-angle's cosine is √0.8, its sine √0.2.
     let axis = DVec3::new(1.0, 2.0, 2.0) / 3.0 * 0.2f64.sqrt();
-    let r = DMat4::from_quat(glam::DQuat::from_xyzw(axis.x, axis.y, axis.z, 0.8f64.sqrt()));
+    let r = DMat4::from_quat(glam::DQuat::from_xyzw(
+        axis.x,
+        axis.y,
+        axis.z,
+        0.8f64.sqrt(),
+    ));
     let m = DMat4::from_translation(DVec3::new(0.25, -1.5, 0.75))
         * r
         * DMat4::from_scale(DVec3::new(1.5, 2.0, 1.25));
@@ -240,7 +245,11 @@ fn the_camera_can_come_from_the_gltf_file() {
     assert!((c.w - glam::Vec3::X).length() < 1e-6, "{:?}", c.w);
     assert!((c.v - glam::Vec3::Y).length() < 1e-6, "{:?}", c.v);
     // t = tan(yfov / 2) = tan(0.25) at distance 1.
-    assert!((f64::from(c.t) - 0.255_341_921_221_036_3).abs() < 1e-6, "{}", c.t);
+    assert!(
+        (f64::from(c.t) - 0.255_341_921_221_036_3).abs() < 1e-6,
+        "{}",
+        c.t
+    );
     // Any other camera key beside it is an error naming it.
     let toml2 = toml.replace("from = \"gltf\"\n", "from = \"gltf\"\nfov_y = 30.0\n");
     let e = wavefront::scene::file::parse(&toml2, &dir.join("s.toml")).unwrap_err();

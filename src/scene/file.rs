@@ -929,7 +929,10 @@ impl Cx<'_> {
     /// `[camera] from = "gltf"` (SPEC §15): the span of the key when the camera comes from the
     /// first glTF mesh's file, `None` otherwise. No other camera key may be given with it but
     /// nothing else.
-    fn camera_from_gltf(&self, raw: &Spanned<RawCamera>) -> Result<Option<Range<usize>>, SceneError> {
+    fn camera_from_gltf(
+        &self,
+        raw: &Spanned<RawCamera>,
+    ) -> Result<Option<Range<usize>>, SceneError> {
         let c = raw.get_ref();
         let Some(from) = &c.from else { return Ok(None) };
         let Some(name) = from.get_ref().as_str() else {
