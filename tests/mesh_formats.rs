@@ -316,3 +316,48 @@ fn unused_mtl_keys_are_one_warning_each_with_their_line() {
             .any(|w| w.contains("`Kd`") || w.contains("`illum`"))
     );
 }
+
+#[test]
+fn point_lights_can_come_from_the_gltf_file_and_other_kinds_are_an_error() {
+    let dir = Scratch::new("gltf-lights");
+    let mesh = PolyMesh::bumpy(3);
+    let with_light = |kind: &str| {
+        mesh.gltf_embedded(None)
+            .replace(
+                r#""scenes": [{"nodes": [0]}]"#,
+                r#""scenes": [{"nodes": [0, 2]}]"#,
+            )
+            .replace(
+                r#"{"mesh": 0}]"#,
+                &format!(
+                    r#"{{"mesh": 0}}, {{"translation": [1.5, 3.0, -2.0], "extensions": {{"KHR_lights_punctual": {{"light": 0}}}}}}],
+  "extensionsUsed": ["KHR_lights_punctual"],
+  "extensions": {{"KHR_lights_punctual": {{"lights": [{kind}]}}}}"#
+                ),
+            )
+    };
+    dir.write(
+        "p.gltf",
+        &with_light(r#"{"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 2.0}"#),
+    );
+    let toml =
+        scene_text("p.gltf", "m").replace("[render]\n", "[render]\nlights_from = \"gltf\"\n");
+    let scene = wavefront::scene::file::parse(&toml, &dir.join("s.toml")).unwrap();
+    // The scene's own light first, then the file's.
+    assert_eq!(scene.lights.len(), 2);
+    assert_eq!(scene.lights[1].position, DVec3::new(1.5, 3.0, -2.0));
+    assert_eq!(scene.lights[1].intensity, glam::Vec3::new(2.0, 1.0, 0.5));
+    for kind in [
+        r#"{"type": "spot", "spot": {"outerConeAngle": 0.5}}"#,
+        r#"{"type": "directional"}"#,
+    ] {
+        dir.write("p.gltf", &with_light(kind));
+        let e = wavefront::scene::file::parse(&toml, &dir.join("s.toml")).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            msg.contains("render.lights_from")
+                && msg.contains("spot/directional glTF lights need SPEC §14 lights"),
+            "{msg}"
+        );
+    }
+}

@@ -642,3 +642,75 @@ pub fn camera(path: &Path) -> Result<LookAt, MeshError> {
     })?;
     found.ok_or_else(|| fail(path, "no perspective camera in the default scene"))
 }
+
+/// A `KHR_lights_punctual` point light: world position and intensity (`color · intensity`, as
+/// given).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GltfPointLight {
+    /// The node's origin in world coordinates.
+    pub position: DVec3,
+    /// `color · intensity` per channel.
+    pub intensity: [f32; 3],
+}
+
+/// The `KHR_lights_punctual` lights of the glTF file `path`'s default scene, in node order.
+/// Only point lights are read; a spot or directional light is an error naming it ("spot/directional
+/// glTF lights need SPEC §14 lights"). The lights are read from the JSON (the crate's accessors
+/// unwrap, so a light index out of range would panic there).
+pub fn point_lights(path: &Path) -> Result<Vec<GltfPointLight>, MeshError> {
+    use ::gltf::json::extensions::scene::khr_lights_punctual::Type;
+    use ::gltf::json::validation::Checked;
+    let file = GltfFile::read(path)?;
+    let json = file.doc.as_json();
+    let lights = json
+        .extensions
+        .as_ref()
+        .and_then(|e| e.khr_lights_punctual.as_ref())
+        .map_or(&[][..], |k| k.lights.as_slice());
+    let mut out = vec![];
+    walk(&file.doc, path, |node, world| {
+        let Some(l) = json.nodes[node.index()]
+            .extensions
+            .as_ref()
+            .and_then(|e| e.khr_lights_punctual.as_ref())
+        else {
+            return Ok(());
+        };
+        let i = l.light.value();
+        let light = lights.get(i).ok_or_else(|| {
+            fail(
+                path,
+                format!(
+                    "node {}: light {i} is not in KHR_lights_punctual",
+                    node.index()
+                ),
+            )
+        })?;
+        match light.type_ {
+            Checked::Valid(Type::Point) => {}
+            Checked::Valid(Type::Spot | Type::Directional) => {
+                return Err(fail(
+                    path,
+                    format!(
+                        "light {i} (node {}): spot/directional glTF lights need SPEC §14 lights",
+                        node.index()
+                    ),
+                ));
+            }
+            Checked::Invalid => return Err(fail(path, format!("light {i}: unknown type"))),
+        }
+        let intensity = light.color.map(|c| c * light.intensity);
+        if !intensity.iter().all(|c| c.is_finite() && *c >= 0.0) {
+            return Err(fail(
+                path,
+                format!("light {i}: color · intensity must be finite and ≥ 0"),
+            ));
+        }
+        out.push(GltfPointLight {
+            position: world.transform_point3(DVec3::ZERO),
+            intensity,
+        });
+        Ok(())
+    })?;
+    Ok(out)
+}

@@ -165,6 +165,8 @@ struct RawRender {
     offset: Option<Spanned<String>>,
     sphere_test: Option<Spanned<String>>,
     triangle_test: Option<Spanned<String>>,
+    /// `"gltf"`: add the first glTF mesh's `KHR_lights_punctual` lights (SPEC §15).
+    lights_from: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -429,6 +431,7 @@ impl Cx<'_> {
                 (Some(camera), path)
             }
         };
+        let lights_from = raw.render.as_ref().and_then(|r| r.lights_from.clone());
         let render = self.render(raw.render)?;
 
         let mut lights = Vec::with_capacity(raw.light.len());
@@ -623,6 +626,9 @@ impl Cx<'_> {
         }
 
         materials.extend(library);
+        if let Some(from) = &lights_from {
+            lights.extend(self.gltf_lights(from, &meshes)?);
+        }
         let camera = match (auto, camera) {
             (_, Some(camera)) => camera,
             (None, None) if from_gltf.is_some() => {
@@ -995,6 +1001,46 @@ impl Cx<'_> {
             .map_err(|e| fail(format!("no camera: {}", crate::error::chain(&e))))?;
         view.camera(image.width, image.height)
             .map_err(|e| fail(format!("the glTF camera has no view: {e}")))
+    }
+
+    /// `[render] lights_from = "gltf"`: the point lights of the first glTF mesh
+    /// ([`crate::mesh::gltf::point_lights`]); a file without lights is an error.
+    fn gltf_lights(
+        &self,
+        from: &Spanned<String>,
+        meshes: &[MeshRef],
+    ) -> Result<Vec<PointLight>, SceneError> {
+        let fail = |message: String| self.err(from.span(), "render.lights_from", message);
+        if from.get_ref() != "gltf" {
+            return Err(fail(format!(
+                "unknown value {:?}; expected \"gltf\"",
+                from.get_ref()
+            )));
+        }
+        let gltf = meshes
+            .iter()
+            .find(|m| {
+                matches!(
+                    crate::mesh::check_format(&m.path),
+                    Ok(crate::mesh::Format::Gltf | crate::mesh::Format::Glb)
+                )
+            })
+            .ok_or_else(|| fail("needs a [[mesh]] that is a glTF file".into()))?;
+        let found = crate::mesh::gltf::point_lights(&gltf.path)
+            .map_err(|e| fail(crate::error::chain(&e)))?;
+        if found.is_empty() {
+            return Err(fail(format!(
+                "{} has no KHR_lights_punctual light in its default scene",
+                gltf.path.display()
+            )));
+        }
+        Ok(found
+            .into_iter()
+            .map(|l| PointLight {
+                position: l.position,
+                intensity: Vec3::from_array(l.intensity),
+            })
+            .collect())
     }
 
     /// The camera of `frame = "auto"`: [`super::framing::frame_box`] of the bounds of every
