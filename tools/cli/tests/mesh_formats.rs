@@ -57,10 +57,19 @@ fn ply_renders_byte_identically_to_the_obj_of_the_same_faces() {
         for (name, _) in plys {
             dir.write("ply.toml", &scene(name, normals));
             // Twice through the tree cache (stored, then read) and once without it.
-            for cache in [&[][..], &[][..], &["--no-cache"][..]] {
+            for (cache, status) in [
+                (&["--stats"][..], "cache: Stored"),
+                (&["--stats"][..], "cache: Hit"),
+                (&["--no-cache"][..], ""),
+            ] {
                 let mut args = vec!["render", "ply.toml", "-o", "ply.png"];
                 args.extend(cache);
-                ok(&run(&dir, &args));
+                let o = run(&dir, &args);
+                ok(&o);
+                let out = String::from_utf8_lossy(&o.stdout);
+                // Vertex normals take the uncached path (as for OBJ).
+                let status = if normals == "vertex" { "" } else { status };
+                assert!(out.contains(status), "{name}: {out}");
                 let bytes = std::fs::read(dir.join("ply.png")).unwrap();
                 assert!(
                     bytes == reference,
@@ -106,4 +115,40 @@ fn info_reads_ply_and_gltf() {
             "{f}: {out}"
         );
     }
+}
+
+#[test]
+fn the_tree_cache_key_follows_a_gltf_files_external_buffer() {
+    let dir = Scratch::new("gltf-cache");
+    let mesh = PolyMesh::bumpy(6);
+    mesh.gltf_files(dir.path(), "m", None);
+    dir.write("s.toml", &scene("m.gltf", "geometric"));
+    let render = |out: &str| {
+        let o = run(&dir, &["render", "s.toml", "-o", out, "--stats"]);
+        ok(&o);
+        String::from_utf8_lossy(&o.stdout).into_owned()
+    };
+    assert!(render("a.png").contains("cache: Stored"));
+    assert!(render("b.png").contains("cache: Hit"));
+    // The same .gltf over another .bin (the mesh moved): a new entry, a new image.
+    let mut moved = mesh.clone();
+    for p in &mut moved.positions {
+        p[1] += 0.25;
+    }
+    moved.gltf_files(dir.path(), "moved", None);
+    std::fs::copy(dir.join("moved.bin"), dir.join("m.bin")).unwrap();
+    let out = render("c.png");
+    assert!(out.contains("cache: Stored"), "{out}");
+    let same =
+        std::fs::read(dir.join("a.png")).unwrap() == std::fs::read(dir.join("c.png")).unwrap();
+    assert!(!same, "the moved mesh rendered as the old one");
+    // And the moved render is the one an uncached run makes.
+    ok(&run(
+        &dir,
+        &["render", "s.toml", "-o", "d.png", "--no-cache"],
+    ));
+    assert_eq!(
+        std::fs::read(dir.join("c.png")).unwrap(),
+        std::fs::read(dir.join("d.png")).unwrap()
+    );
 }
