@@ -284,8 +284,9 @@ impl TriangleMesh {
     }
 }
 
-/// An OBJ file's triangles with the positions as written, in f64: what the render frame's f32
-/// mesh ([`ObjMesh::to_frame`]) and the f64 oracle are both made from.
+/// A mesh file's triangles with the positions as written, in f64: what the render frame's f32
+/// mesh ([`ObjMesh::to_frame`]) and the f64 oracle are both made from. Named for OBJ, its first
+/// format; PLY and glTF files are read into it too ([`read_bytes`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ObjMesh {
     /// The file read.
@@ -297,9 +298,9 @@ pub struct ObjMesh {
     /// Unit shading normal of each vertex ([`ObjRead::normals`]): the file's `vn`, or
     /// area-weighted face normals where a model has none. Empty unless asked for.
     pub normals: Vec<[f64; 3]>,
-    /// Index of each triangle's MTL material in the order of the file's `mtllib` libraries, or
-    /// [`NO_MATERIAL`] for faces before any `usemtl` ([`ObjRead::materials`]). Empty unless asked
-    /// for.
+    /// Index of each triangle's MTL material in the order of the file's `mtllib` libraries (for
+    /// glTF: its primitive's material index), or [`NO_MATERIAL`] for faces before any `usemtl`
+    /// (primitives without a material) ([`ObjRead::materials`]). Empty unless asked for.
     pub face_materials: Vec<u32>,
 }
 
@@ -308,7 +309,8 @@ pub struct ObjMesh {
 pub struct ObjRead {
     /// Per-vertex shading normals.
     pub normals: bool,
-    /// Per-face MTL materials (the `mtllib` files are read relative to the OBJ's folder).
+    /// Per-face materials: MTL (the `mtllib` files are read relative to the OBJ's folder) or
+    /// glTF primitive materials.
     pub materials: bool,
 }
 
