@@ -222,21 +222,22 @@ impl GltfFile {
             buffers,
         })
     }
+}
 
-    /// Reads the file `path` and its buffers.
-    pub fn read(path: &Path) -> Result<GltfFile, MeshError> {
-        let read = || -> std::io::Result<Vec<u8>> {
-            let (f, _) = crate::input::open_regular(path)?;
-            let mut bytes = vec![];
-            std::io::Read::read_to_end(&mut { f }, &mut bytes)?;
-            Ok(bytes)
-        };
-        let bytes = read().map_err(|source| MeshError::Read {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        GltfFile::parse(&bytes, path)
-    }
+/// The document of the glTF file `path`, checked, without its buffers (what materials, cameras
+/// and lights are read from at scene load).
+fn read_document(path: &Path) -> Result<::gltf::Document, MeshError> {
+    let read = || -> std::io::Result<Vec<u8>> {
+        let (f, _) = crate::input::open_regular(path)?;
+        let mut bytes = vec![];
+        std::io::Read::read_to_end(&mut { f }, &mut bytes)?;
+        Ok(bytes)
+    };
+    let bytes = read().map_err(|source| MeshError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(document(&bytes, path)?.document)
 }
 
 /// The f64 matrix of a node's local transform (a TRS's rotation normalised).
@@ -566,11 +567,10 @@ pub fn blinn_phong(m: &::gltf::Material, name: String) -> Material {
 /// The materials of the glTF file `path` (see [`GltfMaterials`]); names are prefixed with the
 /// file's path.
 pub fn materials(path: &Path) -> Result<GltfMaterials, MeshError> {
-    let file = GltfFile::read(path)?;
+    let doc = read_document(path)?;
     let prefix = path.display().to_string();
     let mut textures = vec![];
-    let materials = file
-        .doc
+    let materials = doc
         .materials()
         .map(|m| {
             let i = m.index().unwrap_or(0);
@@ -595,7 +595,7 @@ pub fn materials(path: &Path) -> Result<GltfMaterials, MeshError> {
         .collect();
     let mut used = vec![];
     let mut unassigned = false;
-    walk(&file.doc, path, |node, _| {
+    walk(&doc, path, |node, _| {
         if let Some(m) = node.mesh() {
             for prim in m.primitives() {
                 if prim.mode() != ::gltf::mesh::Mode::Triangles {
@@ -622,9 +622,9 @@ pub fn materials(path: &Path) -> Result<GltfMaterials, MeshError> {
 /// order): the eye at the node's origin looking down its −z axis, up its +y axis, `fov_y` the
 /// camera's `yfov`.
 pub fn camera(path: &Path) -> Result<LookAt, MeshError> {
-    let file = GltfFile::read(path)?;
+    let doc = read_document(path)?;
     let mut found = None;
-    walk(&file.doc, path, |node, world| {
+    walk(&doc, path, |node, world| {
         if found.is_none()
             && let Some(c) = node.camera()
             && let ::gltf::camera::Projection::Perspective(p) = c.projection()
@@ -660,15 +660,15 @@ pub struct GltfPointLight {
 pub fn point_lights(path: &Path) -> Result<Vec<GltfPointLight>, MeshError> {
     use ::gltf::json::extensions::scene::khr_lights_punctual::Type;
     use ::gltf::json::validation::Checked;
-    let file = GltfFile::read(path)?;
-    let json = file.doc.as_json();
+    let doc = read_document(path)?;
+    let json = doc.as_json();
     let lights = json
         .extensions
         .as_ref()
         .and_then(|e| e.khr_lights_punctual.as_ref())
         .map_or(&[][..], |k| k.lights.as_slice());
     let mut out = vec![];
-    walk(&file.doc, path, |node, world| {
+    walk(&doc, path, |node, world| {
         let Some(l) = json.nodes[node.index()]
             .extensions
             .as_ref()
