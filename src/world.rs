@@ -573,6 +573,10 @@ fn load_triangles(
             None => material_ranges.push((first, m.material)),
             Some(binding) => {
                 let fallback = binding.fallback.unwrap_or(m.material);
+                // A file without per-face materials (a PLY put in by `--mesh`): the fallback.
+                if obj.face_materials.len() != obj.len() {
+                    material_ranges.push((first, fallback));
+                }
                 for (k, &f) in obj.face_materials.iter().enumerate() {
                     let material = if f == NO_MATERIAL {
                         fallback

@@ -732,3 +732,31 @@ fn bad_gltf_files_are_one_line_errors_naming_the_file() {
         assert!(!e.contains('\n'), "{e}");
     }
 }
+
+#[test]
+fn a_ply_put_in_for_an_mtl_bound_obj_takes_the_fallback_not_a_panic() {
+    let dir = Scratch::new("hostile-mesh-swap");
+    dir.write("m.mtl", "newmtl a\nKd 0.5 0.5 0.5\n");
+    dir.write("m.obj", &format!("mtllib m.mtl\nusemtl a\n{TRIANGLE}"));
+    std::fs::write(
+        dir.join("m.ply"),
+        format!(
+            "{}-1 -1 -3\n1 -1 -3\n0 1 -3\n3 0 1 2\n",
+            ply_header("ascii", "3", "1")
+        ),
+    )
+    .unwrap();
+    let body = "[[mesh]]\npath = \"m.obj\"\nmaterial = \"mtl\"\nfallback_material = \"floor\"\n";
+    let path = dir.write("s.toml", &scene_text(body));
+    let mut scene = load(&path).unwrap_or_else(|e| panic!("{}", chain(&e)));
+    // What `--mesh m.ply` does: the path changes, the MTL binding stays.
+    scene.meshes[0].path = dir.join("m.ply");
+    scene.image.width = 8;
+    scene.image.height = 8;
+    let world = World::load(&scene).unwrap_or_else(|e| panic!("{}", chain(&e)));
+    let t = world.triangles().expect("the triangle");
+    assert_eq!(
+        t.material(0),
+        scene.meshes[0].mtl.as_ref().unwrap().fallback.unwrap()
+    );
+}
