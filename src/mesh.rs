@@ -1,7 +1,10 @@
-//! Triangle meshes: flat vertex and index arrays loaded from Wavefront OBJ files.
+//! Triangle meshes: flat vertex and index arrays loaded from Wavefront OBJ, PLY ([`ply`]) and
+//! glTF ([`gltf`]) files, told apart by extension in one place ([`check_format`],
+//! [`read_bytes`]).
 //!
 //! Reads OBJ text (checked line by line by [`check_lines`], then parsed by `tobj`), writes a
-//! [`TriangleMesh`] whose triangle `k` is the `k`-th face of the file. Bad input is rejected here,
+//! [`TriangleMesh`] whose triangle `k` is the `k`-th face of the file (for PLY and glTF: the
+//! `k`-th triangle in file order). Bad input is rejected here,
 //! at load time, with errors naming file and line, so the kernels that read the mesh later never
 //! see non-finite coordinates or bad indices — and a file that is not OBJ (binary bytes, a text
 //! file of another kind) is an error at its first line that is not OBJ, never an empty mesh.
@@ -13,6 +16,9 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 use thiserror::Error;
+
+pub mod gltf;
+pub mod ply;
 
 /// Errors from loading a mesh. Messages are lowercase and name the file and, where there is one,
 /// the 1-based line.
@@ -85,25 +91,103 @@ pub enum MeshError {
     },
 }
 
-/// `Ok` when `path` names an OBJ file (`.obj`, any case); PLY and glTF are an error naming the
-/// file until they are read (SPEC §15), and so is any other extension.
-pub fn check_format(path: &Path) -> Result<(), MeshError> {
+/// A mesh file format (SPEC §15), told by the file's extension ([`check_format`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Wavefront OBJ (`.obj`), with its MTL libraries.
+    Obj,
+    /// PLY (`.ply`): ASCII or binary ([`ply`]).
+    Ply,
+    /// glTF 2.0 as JSON (`.gltf`) with external or data-URI buffers ([`gltf`]).
+    Gltf,
+    /// Binary glTF 2.0 (`.glb`) ([`gltf`]).
+    Glb,
+}
+
+impl Format {
+    /// The name used in messages (`OBJ`, `PLY`, `glTF`).
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Obj => "OBJ",
+            Format::Ply => "PLY",
+            Format::Gltf | Format::Glb => "glTF",
+        }
+    }
+}
+
+/// The format of the mesh file `path` by its extension (any case): `.obj`, `.ply`, `.gltf` or
+/// `.glb`; any other extension, or none, is an error naming the file. Every mesh read goes
+/// through here ([`read_bytes`] dispatches on it).
+pub fn check_format(path: &Path) -> Result<Format, MeshError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
         .map(str::to_ascii_lowercase);
     let message = match ext.as_deref() {
-        Some("obj") => return Ok(()),
-        Some(e @ ("ply" | "gltf" | "glb")) => {
-            format!(".{e} meshes are not supported yet: this format is not read (use .obj)")
+        Some("obj") => return Ok(Format::Obj),
+        Some("ply") => return Ok(Format::Ply),
+        Some("gltf") => return Ok(Format::Gltf),
+        Some("glb") => return Ok(Format::Glb),
+        Some(e) => format!("unknown mesh format .{e} (use .obj, .ply, .gltf or .glb)"),
+        None => {
+            "no extension: the mesh format is not known (use .obj, .ply, .gltf or .glb)".to_owned()
         }
-        Some(e) => format!("unknown mesh format .{e} (use .obj)"),
-        None => "no extension: the mesh format is not known (use .obj)".to_owned(),
     };
     Err(MeshError::Format {
         path: path.to_path_buf(),
         message,
     })
+}
+
+/// Reads the mesh file `path` whose bytes are `bytes`, in the format its extension names
+/// ([`check_format`]): the one place where formats are told apart. OBJ goes through the fast
+/// parser ([`crate::obj_fast`]) when `fast` and `what` asks for nothing but positions and faces,
+/// else through tobj ([`ObjMesh::parse_with`]); PLY through [`ply::parse`]; glTF through
+/// [`gltf::parse`] (which reads external buffers relative to `path`).
+pub fn read_bytes(
+    path: &Path,
+    bytes: &[u8],
+    what: ObjRead,
+    fast: bool,
+) -> Result<ObjMesh, MeshError> {
+    match check_format(path)? {
+        Format::Obj => {
+            if fast
+                && what == ObjRead::default()
+                && let Some((positions, indices)) = crate::obj_fast::parse(bytes)
+            {
+                return Ok(ObjMesh {
+                    path: path.to_path_buf(),
+                    positions,
+                    indices,
+                    ..ObjMesh::default()
+                });
+            }
+            let text = std::str::from_utf8(bytes).map_err(|_| MeshError::Read {
+                path: path.to_path_buf(),
+                source: std::io::Error::new(std::io::ErrorKind::InvalidData, "is not UTF-8 text"),
+            })?;
+            ObjMesh::parse_with(text, path, what)
+        }
+        Format::Ply => ply::parse(bytes, path, what),
+        Format::Gltf | Format::Glb => gltf::parse(bytes, path, what),
+    }
+}
+
+/// What the tree cache's key is made from for the mesh file `path` whose bytes are `bytes`: the
+/// bytes themselves for OBJ; for the other formats a tag naming the format first (the same bytes
+/// read as another format are another mesh), then the bytes, then, for glTF, every external
+/// buffer's bytes (a `.gltf` file does not change when its `.bin` does).
+pub fn cache_sources(path: &Path, bytes: &[u8]) -> Result<Vec<Vec<u8>>, MeshError> {
+    let format = check_format(path)?;
+    if format == Format::Obj {
+        return Ok(vec![]);
+    }
+    let mut out = vec![format!("wavefront mesh format {format:?}").into_bytes()];
+    if matches!(format, Format::Gltf | Format::Glb) {
+        out.extend(gltf::external_buffers(bytes, path)?);
+    }
+    Ok(out)
 }
 
 /// An indexed triangle mesh stored as flat, `Pod` arrays (castable with `bytemuck`).
@@ -200,8 +284,9 @@ impl TriangleMesh {
     }
 }
 
-/// An OBJ file's triangles with the positions as written, in f64: what the render frame's f32
-/// mesh ([`ObjMesh::to_frame`]) and the f64 oracle are both made from.
+/// A mesh file's triangles with the positions as written, in f64: what the render frame's f32
+/// mesh ([`ObjMesh::to_frame`]) and the f64 oracle are both made from. Named for OBJ, its first
+/// format; PLY and glTF files are read into it too ([`read_bytes`]).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ObjMesh {
     /// The file read.
@@ -213,9 +298,9 @@ pub struct ObjMesh {
     /// Unit shading normal of each vertex ([`ObjRead::normals`]): the file's `vn`, or
     /// area-weighted face normals where a model has none. Empty unless asked for.
     pub normals: Vec<[f64; 3]>,
-    /// Index of each triangle's MTL material in the order of the file's `mtllib` libraries, or
-    /// [`NO_MATERIAL`] for faces before any `usemtl` ([`ObjRead::materials`]). Empty unless asked
-    /// for.
+    /// Index of each triangle's MTL material in the order of the file's `mtllib` libraries (for
+    /// glTF: its primitive's material index), or [`NO_MATERIAL`] for faces before any `usemtl`
+    /// (primitives without a material) ([`ObjRead::materials`]). Empty unless asked for.
     pub face_materials: Vec<u32>,
 }
 
@@ -224,7 +309,8 @@ pub struct ObjMesh {
 pub struct ObjRead {
     /// Per-vertex shading normals.
     pub normals: bool,
-    /// Per-face MTL materials (the `mtllib` files are read relative to the OBJ's folder).
+    /// Per-face materials: MTL (the `mtllib` files are read relative to the OBJ's folder) or
+    /// glTF primitive materials.
     pub materials: bool,
 }
 
@@ -241,24 +327,35 @@ impl ObjMesh {
             })
     }
 
-    /// Reads an OBJ file through `tobj` in f64 (triangulated, single index, all models merged in
-    /// file order, so triangle `k` is the `k`-th face of the file; polygons are fanned in place).
+    /// Reads a mesh file in f64: an OBJ file through `tobj` (triangulated, single index, all
+    /// models merged in file order, so triangle `k` is the `k`-th face of the file; polygons are
+    /// fanned in place), a PLY or glTF file through its reader ([`read_bytes`]).
     ///
-    /// Errors name the file and line: unreadable file, non-finite coordinates (the `v` line),
-    /// face indices out of range (the `f` line), and parse errors.
+    /// Errors name the file and line: unreadable file, an extension that names no format this
+    /// build reads, non-finite coordinates (the `v` line), face indices out of range (the `f`
+    /// line), and parse errors.
     pub fn read(path: &Path) -> Result<ObjMesh, MeshError> {
         ObjMesh::read_with(path, ObjRead::default())
     }
 
-    /// [`ObjMesh::read`], also reading what `what` asks for: vertex normals (`vn`, or
-    /// area-weighted ones for models without) and per-face MTL materials (tobj's MTL loader; a
-    /// library that cannot be read is an error naming the OBJ file and its `mtllib` line).
+    /// [`ObjMesh::read`], also reading what `what` asks for: vertex normals (`vn`, PLY `nx ny
+    /// nz`, glTF `NORMAL`, or area-weighted ones for models without) and per-face materials
+    /// (OBJ: tobj's MTL loader, a library that cannot be read is an error naming the OBJ file and
+    /// its `mtllib` line; glTF: each primitive's material).
     pub fn read_with(path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
-        let text = crate::input::read_text(path).map_err(|source| MeshError::Read {
+        check_format(path)?;
+        let (file, _) = crate::input::open_regular(path).map_err(|source| MeshError::Read {
             path: path.to_path_buf(),
             source,
         })?;
-        ObjMesh::parse_with(&text, path, what)
+        let mut bytes = vec![];
+        std::io::Read::read_to_end(&mut { file }, &mut bytes).map_err(|source| {
+            MeshError::Read {
+                path: path.to_path_buf(),
+                source,
+            }
+        })?;
+        read_bytes(path, &bytes, what, false)
     }
 
     /// [`ObjMesh::read_with`] of OBJ text already read; `path` names the file in errors and

@@ -19,7 +19,7 @@ use std::path::Path;
 
 use rayon::prelude::*;
 
-use crate::mesh::{MeshError, ObjMesh};
+use crate::mesh::{MeshError, ObjMesh, ObjRead};
 
 /// Index not given in a corner (`a`, `a//c`): tobj's `MISSING_INDEX`.
 const MISSING: u64 = u64::MAX;
@@ -27,21 +27,11 @@ const MISSING: u64 = u64::MAX;
 /// Bytes per parallel chunk (at least; chunks end at a line end).
 const CHUNK_BYTES: usize = 1 << 20;
 
-/// Reads the OBJ file `path` whose bytes are `bytes` (already read, e.g. to hash them): the same
-/// positions and triangles as [`ObjMesh::read`], which it falls back to for uncommon files.
+/// Reads the mesh file `path` whose bytes are `bytes` (already read, e.g. to hash them): for an
+/// OBJ file the same positions and triangles as [`ObjMesh::read`], through the fast path where it
+/// applies; any other format through its reader ([`crate::mesh::read_bytes`], the one dispatch).
 pub fn read_bytes(path: &Path, bytes: &[u8]) -> Result<ObjMesh, MeshError> {
-    match parse(bytes) {
-        // The update keeps this literal valid when `ObjMesh` gains fields (normals, materials),
-        // which uncommon files get through tobj.
-        #[allow(clippy::needless_update)]
-        Some((positions, indices)) => Ok(ObjMesh {
-            path: path.to_path_buf(),
-            positions,
-            indices,
-            ..ObjMesh::default()
-        }),
-        None => ObjMesh::read(path),
-    }
+    crate::mesh::read_bytes(path, bytes, ObjRead::default(), true)
 }
 
 /// Positions (f64) and triangles, as [`ObjMesh`] holds them.

@@ -573,6 +573,10 @@ fn load_triangles(
             None => material_ranges.push((first, m.material)),
             Some(binding) => {
                 let fallback = binding.fallback.unwrap_or(m.material);
+                // A file without per-face materials (a PLY put in by `--mesh`): the fallback.
+                if obj.face_materials.len() != obj.len() {
+                    material_ranges.push((first, fallback));
+                }
                 for (k, &f) in obj.face_materials.iter().enumerate() {
                     let material = if f == NO_MATERIAL {
                         fallback
@@ -631,7 +635,8 @@ fn check_mesh_path(scene: &Scene, m: &crate::scene::MeshRef) -> Result<(), LoadE
     if crate::input::is_absent(&m.path) {
         return Err(crate::scene::builtin::missing_scene_mesh(scene, &m.path).into());
     }
-    Ok(crate::mesh::check_format(&m.path)?)
+    crate::mesh::check_format(&m.path)?;
+    Ok(())
 }
 
 /// After a mesh is read: it has triangles, unless its `[[mesh]]` says `allow_empty = true`.

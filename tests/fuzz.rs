@@ -1,5 +1,6 @@
-//! A seeded fuzz suite over every input parser (issue 21, item 6): scene TOML, OBJ, MTL, tree
-//! text, tree-cache entries, and tile PNG / EXR files. Each parser gets `WAVEFRONT_FUZZ_CASES`
+//! A seeded fuzz suite over every input parser (issue 21, item 6): scene TOML, OBJ, PLY (ASCII,
+//! binary LE and BE), glTF (JSON with a data URI, and GLB), MTL, tree text, tree-cache entries,
+//! and tile PNG / EXR files. Each parser gets `WAVEFRONT_FUZZ_CASES`
 //! random mutations (default 10,000) of a valid file — bit flips, truncations, splices of the
 //! file into itself, byte runs, and tokens such as huge, tiny and non-finite numbers — and every
 //! case must end in a clean error (naming the file) or in a result that passes validation, with
@@ -347,6 +348,85 @@ fn fuzzed_obj_files_load_valid_meshes_or_name_the_file() {
             assert_eq!(indices, slow.indices);
         }
     });
+}
+
+/// Checks a mesh read with normals and materials: [`assert_valid_mesh`], one finite normal per
+/// vertex, one material per triangle.
+fn assert_valid_full_mesh(m: &ObjMesh) {
+    assert_valid_mesh(m);
+    assert_eq!(m.normals.len(), m.positions.len());
+    assert!(m.normals.iter().flatten().all(|c| c.is_finite()));
+}
+
+#[test]
+fn fuzzed_ply_files_load_valid_meshes_or_name_the_file() {
+    use wavefront_kit::meshes::{PlyEncoding, PolyMesh};
+    let mesh = PolyMesh::bumpy(2);
+    let encodings = [
+        PlyEncoding::Ascii,
+        PlyEncoding::LittleEndian,
+        PlyEncoding::BigEndian,
+    ];
+    let what = ObjRead {
+        normals: true,
+        materials: false,
+    };
+    let path = PathBuf::from("fuzz.ply");
+    for (k, enc) in encodings.into_iter().enumerate() {
+        let name = ["ply-ascii", "ply-le", "ply-be"][k];
+        let mut read = 0u64;
+        fuzz(
+            name,
+            &mesh.ply(enc),
+            |bytes| match wavefront::mesh::read_bytes(&path, bytes, what, true) {
+                Ok(m) => {
+                    assert_valid_full_mesh(&m);
+                    read += 1;
+                }
+                Err(e) => {
+                    let e = chain(&e);
+                    assert_names(&e, "fuzz.ply");
+                    assert!(!e.contains('\n'), "a multi-line error: {e}");
+                }
+            },
+        );
+        println!("{name}: {read} of {} mutations read", cases());
+    }
+}
+
+#[test]
+fn fuzzed_gltf_files_load_valid_meshes_or_name_the_file() {
+    use wavefront_kit::meshes::PolyMesh;
+    let mesh = PolyMesh::bumpy(2);
+    let what = ObjRead {
+        normals: true,
+        materials: true,
+    };
+    let read = std::cell::Cell::new(0u64);
+    let check =
+        |path: &Path, bytes: &[u8]| match wavefront::mesh::read_bytes(path, bytes, what, true) {
+            Ok(m) => {
+                assert_valid_full_mesh(&m);
+                assert_eq!(m.face_materials.len(), m.indices.len());
+                read.set(read.get() + 1);
+            }
+            Err(e) => {
+                let e = chain(&e);
+                assert_names(&e, &path.display().to_string());
+                assert!(!e.contains('\n'), "a multi-line error: {e}");
+            }
+        };
+    let matrix = Some([
+        0.0, 1.0, 0.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 2.0, 0.0, 0.5, 0.25, -1.0, 1.0,
+    ]);
+    let gltf = PathBuf::from("fuzz.gltf");
+    fuzz("gltf", mesh.gltf_embedded(matrix).as_bytes(), |b| {
+        check(&gltf, b)
+    });
+    println!("gltf: {} of {} mutations read", read.replace(0), cases());
+    let glb = PathBuf::from("fuzz.glb");
+    fuzz("glb", &mesh.glb(matrix), |b| check(&glb, b));
+    println!("glb: {} of {} mutations read", read.get(), cases());
 }
 
 #[test]

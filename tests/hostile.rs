@@ -203,9 +203,14 @@ fn a_mesh_without_triangles_is_an_error_unless_the_scene_allows_it() {
 }
 
 #[test]
-fn ply_and_gltf_mesh_paths_are_errors_naming_the_file() {
-    let dir = Scratch::new("hostile-formats");
-    for name in ["m.ply", "m.gltf", "m.glb", "m.stl"] {
+fn obj_text_in_a_ply_or_gltf_path_or_an_unknown_extension_is_an_error_naming_the_file() {
+    let dir = Scratch::new("hostile-misnamed");
+    for (name, want) in [
+        ("m.ply", "not a PLY file"),
+        ("m.gltf", "not a valid glTF 2.0 file"),
+        ("m.glb", "not a valid glTF 2.0 file"),
+        ("m.stl", "unknown mesh format .stl"),
+    ] {
         dir.write(name, TRIANGLE);
         let e = load_world(
             &dir,
@@ -213,7 +218,7 @@ fn ply_and_gltf_mesh_paths_are_errors_naming_the_file() {
         )
         .err()
         .unwrap_or_else(|| panic!("{name} accepted"));
-        assert!(e.contains(name) && e.contains("format"), "{e}");
+        assert!(e.contains(name) && e.contains(want), "{e}");
     }
 }
 
@@ -529,4 +534,229 @@ fn a_huge_triangle_is_shaded_like_a_small_one() {
     for s in [1e10, 1e12, 1e18] {
         assert_eq!(centre(s), small, "±{s}");
     }
+}
+
+// Issue 26: PLY and glTF meshes get the same treatment as OBJ.
+
+/// A PLY header for `vertices` `float x y z` vertices and `faces` `uchar int` index lists.
+fn ply_header(format: &str, vertices: &str, faces: &str) -> String {
+    format!(
+        "ply\nformat {format} 1.0\nelement vertex {vertices}\nproperty float x\n\
+         property float y\nproperty float z\nelement face {faces}\n\
+         property list uchar int vertex_indices\nend_header\n"
+    )
+}
+
+#[test]
+fn bad_ply_files_are_one_line_errors_naming_the_file_and_line_or_face() {
+    let dir = Scratch::new("hostile-ply");
+    let ascii = |body: &str, faces: usize| {
+        format!("{}{body}", ply_header("ascii", "3", &faces.to_string()))
+    };
+    let v = "0 0 -3\n1 0 -3\n0 1 -3\n";
+    // The header is 9 lines: vertices on lines 10–12, faces from line 13.
+    let cases: Vec<(String, &str)> = vec![
+        (
+            ascii(&format!("{v}3 0 1 2\n3 0 1 7\n"), 2),
+            "line 14: face 1: vertex index 7 out of range (3 vertices)",
+        ),
+        (
+            ascii(&format!("{v}3 0 -1 2\n"), 1),
+            "line 13: face 0: vertex index -1 out of range",
+        ),
+        (
+            ascii(&format!("{v}2 0 1\n"), 1),
+            "line 13: face 0: needs at least 3 vertices, not 2",
+        ),
+        (
+            ascii("0 0 nan\n1 0 -3\n0 1 -3\n3 0 1 2\n", 1),
+            ":10: parse error: ply: in the `vertex` element",
+        ),
+        (
+            ascii("0 0 1e39\n1 0 -3\n0 1 -3\n3 0 1 2\n", 1),
+            "vertex 0: non-finite",
+        ),
+        (
+            ascii("0 0 x\n", 1),
+            ":10: parse error: ply: in the `vertex` element",
+        ),
+        (ascii(v, 1), "`face` element"),
+        (
+            "ply\nformat ascii 1.0\nend_header\n".into(),
+            "no `vertex` element",
+        ),
+        (
+            "ply\nformat ascii 1.0\nelement vertex 1\nproperty float x\nend_header\n0\n".into(),
+            "no `y` property",
+        ),
+        ("solid stl\n".into(), "not a PLY file"),
+        (String::new(), "not a PLY file"),
+        (ply_header("ascii", "4000000000", "1"), "`vertex` element"),
+        (
+            format!(
+                "{}{}",
+                ply_header("binary_little_endian", "3", "1"),
+                "\u{1}\u{2}"
+            ),
+            "`vertex` element",
+        ),
+        (
+            "ply\nformat binary_middle_endian 1.0\nend_header\n".into(),
+            "fuzz.ply",
+        ),
+    ];
+    for (text, want) in cases {
+        let path = dir.write("fuzz.ply", &text);
+        let e = within(20, want, move || ObjMesh::read(&path).map(|m| m.len()))
+            .expect_err(&format!("accepted:\n{text}"));
+        let e = chain(&e);
+        assert!(
+            e.contains("fuzz.ply") && e.contains(want),
+            "want {want:?}: {e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+    }
+}
+
+#[test]
+fn a_ply_without_faces_is_an_empty_mesh_error_unless_allowed() {
+    let dir = Scratch::new("hostile-ply-empty");
+    std::fs::write(
+        dir.join("m.ply"),
+        format!("{}0 0 -3\n", ply_header("ascii", "1", "0")),
+    )
+    .unwrap();
+    let body = "[[mesh]]\npath = \"m.ply\"\nmaterial = \"floor\"\n";
+    let e = load_world(&dir, body)
+        .map(|_| ())
+        .expect_err("an empty PLY was accepted");
+    assert!(e.contains("m.ply") && e.contains("no triangles"), "{e}");
+    load_world(&dir, &format!("{body}allow_empty = true\n")).expect("allow_empty");
+}
+
+/// A one-triangle glTF whose buffer is at `uri`, with `extra` JSON members at the top level and
+/// `nodes` as the node list.
+fn gltf_text(uri: &str, nodes: &str, byte_length: usize) -> String {
+    format!(
+        r#"{{"asset": {{"version": "2.0"}}, "scene": 0, "scenes": [{{"nodes": [0]}}],
+  "nodes": {nodes},
+  "meshes": [{{"primitives": [{{"attributes": {{"POSITION": 0}}}}]}}],
+  "buffers": [{{"uri": "{uri}", "byteLength": {byte_length}}}],
+  "bufferViews": [{{"buffer": 0, "byteLength": 36}}],
+  "accessors": [{{"bufferView": 0, "componentType": 5126, "count": 3, "type": "VEC3",
+                  "min": [-1, -1, -3], "max": [1, 1, -3]}}]}}"#
+    )
+}
+
+/// The 36 bytes of the triangle (-1, -1, -3), (1, -1, -3), (0, 1, -3).
+fn triangle_bin() -> Vec<u8> {
+    [-1.0f32, -1.0, -3.0, 1.0, -1.0, -3.0, 0.0, 1.0, -3.0]
+        .iter()
+        .flat_map(|x| x.to_le_bytes())
+        .collect()
+}
+
+#[test]
+fn bad_gltf_files_are_one_line_errors_naming_the_file() {
+    let dir = Scratch::new("hostile-gltf");
+    std::fs::write(dir.join("t.bin"), triangle_bin()).unwrap();
+    std::fs::write(dir.join("short.bin"), &triangle_bin()[..20]).unwrap();
+    mkfifo(&dir.join("fifo.bin"));
+    let one = r#"[{"mesh": 0}]"#;
+    // The valid file reads, so each case below fails for its own reason.
+    let path = dir.write("ok.gltf", &gltf_text("t.bin", one, 36));
+    assert_eq!(ObjMesh::read(&path).expect("the valid file").len(), 1);
+    let cases = [
+        (gltf_text("missing.bin", one, 36), "buffer 0: cannot read"),
+        (gltf_text("fifo.bin", one, 36), "is a FIFO"),
+        (
+            gltf_text("short.bin", one, 36),
+            "buffer 0 holds 20 bytes, less than its byteLength 36",
+        ),
+        (
+            gltf_text("t.bin", one, 36).replace(
+                r#""byteLength": 36}]"#,
+                r#""byteLength": 36, "byteOffset": 8}]"#,
+            ),
+            "reaches past the end of buffer 0",
+        ),
+        (
+            gltf_text("t.bin", one, 36).replace(r#""count": 3"#, r#""count": 4"#),
+            "accessor 0: 4 elements reach past the end of bufferView 0",
+        ),
+        (
+            gltf_text("t.bin", one, 36)
+                .replace(r#""componentType": 5126"#, r#""componentType": 5121"#),
+            "accessor 0 (POSITION): must be float VEC3",
+        ),
+        (
+            gltf_text("t.bin", r#"[{"mesh": 0, "children": [0]}]"#, 36),
+            "node 0 is reached twice",
+        ),
+        (
+            gltf_text(
+                "t.bin",
+                r#"[{"mesh": 0, "children": [1]}, {"children": [0]}]"#,
+                36,
+            ),
+            "is reached twice",
+        ),
+        (
+            gltf_text("t.bin", one, 36).replace(r#""POSITION": 0"#, r#""POSITION": 5"#),
+            "names accessor 5, of 1",
+        ),
+        (
+            gltf_text("data:application/octet-stream;base64,@@@@", one, 36),
+            "bad base64",
+        ),
+        (
+            gltf_text("https://example.com/t.bin", one, 36),
+            "only local files",
+        ),
+        (
+            gltf_text("t.bin", one, 36).replace(r#""version": "2.0""#, r#""version": 2"#),
+            "not a valid glTF 2.0 file",
+        ),
+        ("{".into(), "not a valid glTF 2.0 file"),
+        ("glTF\u{2}\0\0\0".into(), "not a valid glTF 2.0 file"),
+    ];
+    for (text, want) in cases {
+        let path = dir.write("bad.gltf", &text);
+        let e = within(20, want, move || ObjMesh::read(&path).map(|m| m.len()))
+            .expect_err(&format!("accepted:\n{text}"));
+        let e = chain(&e);
+        assert!(
+            e.contains("bad.gltf") && e.contains(want),
+            "want {want:?}: {e}"
+        );
+        assert!(!e.contains('\n'), "{e}");
+    }
+}
+
+#[test]
+fn a_ply_put_in_for_an_mtl_bound_obj_takes_the_fallback_not_a_panic() {
+    let dir = Scratch::new("hostile-mesh-swap");
+    dir.write("m.mtl", "newmtl a\nKd 0.5 0.5 0.5\n");
+    dir.write("m.obj", &format!("mtllib m.mtl\nusemtl a\n{TRIANGLE}"));
+    std::fs::write(
+        dir.join("m.ply"),
+        format!(
+            "{}-1 -1 -3\n1 -1 -3\n0 1 -3\n3 0 1 2\n",
+            ply_header("ascii", "3", "1")
+        ),
+    )
+    .unwrap();
+    let body = "[[mesh]]\npath = \"m.obj\"\nmaterial = \"mtl\"\nfallback_material = \"floor\"\n";
+    let path = dir.write("s.toml", &scene_text(body));
+    let mut scene = load(&path).unwrap_or_else(|e| panic!("{}", chain(&e)));
+    // What `--mesh m.ply` does: the path changes, the MTL binding stays.
+    scene.meshes[0].path = dir.join("m.ply");
+    scene.image.width = 8;
+    scene.image.height = 8;
+    let world = World::load(&scene).unwrap_or_else(|e| panic!("{}", chain(&e)));
+    let t = world.triangles().expect("the triangle");
+    assert_eq!(
+        t.material(0),
+        scene.meshes[0].mtl.as_ref().unwrap().fallback.unwrap()
+    );
 }

@@ -129,7 +129,8 @@ struct RawCamera {
     interpolation: Option<Spanned<String>>,
     orbit: Option<Spanned<RawOrbit>>,
     frame: Option<Spanned<String>>,
-    from: Option<V3>,
+    /// A direction (`frame = "auto"`) or `"gltf"` (the first glTF mesh's camera).
+    from: Option<Spanned<toml::Value>>,
 }
 
 /// `[camera.orbit]`: the eye circles `look_at` about `up` (SPEC §10).
@@ -165,6 +166,8 @@ struct RawRender {
     offset: Option<Spanned<String>>,
     sphere_test: Option<Spanned<String>>,
     triangle_test: Option<Spanned<String>>,
+    /// `"gltf"`: add the first glTF mesh's `KHR_lights_punctual` lights (SPEC §15).
+    lights_from: Option<Spanned<String>>,
 }
 
 #[derive(Deserialize)]
@@ -539,15 +542,20 @@ impl Cx<'_> {
 
     fn scene(&self, raw: RawScene) -> Result<Scene, SceneError> {
         let image = self.image(raw.image)?;
-        let auto = self.auto_frame(&raw.camera)?;
-        // A framed camera is made once the geometry is known, below.
-        let (camera, camera_path) = match auto {
-            Some(_) => (None, None),
-            None => {
+        let from_gltf = self.camera_from_gltf(&raw.camera)?;
+        let auto = match from_gltf {
+            Some(_) => None,
+            None => self.auto_frame(&raw.camera)?,
+        };
+        // A framed camera (or a glTF file's) is made once the geometry is known, below.
+        let (camera, camera_path) = match (auto, &from_gltf) {
+            (Some(_), _) | (_, Some(_)) => (None, None),
+            (None, None) => {
                 let (camera, path) = self.camera(&raw.camera, &image)?;
                 (Some(camera), path)
             }
         };
+        let lights_from = raw.render.as_ref().and_then(|r| r.lights_from.clone());
         let render = self.render(raw.render)?;
 
         let mut lights = Vec::with_capacity(raw.light.len());
@@ -645,26 +653,70 @@ impl Cx<'_> {
                 .as_ref()
                 .map(|f| find(f, format!("mesh[{i}].fallback_material")))
                 .transpose()?;
-            let (material, mtl) = if m.material.get_ref() == "mtl" {
+            let format = crate::mesh::check_format(&path)
+                .map_err(|e| self.err(m.path.span(), format!("mesh[{i}].path"), e.to_string()))?;
+            let from_file = match (m.material.get_ref().as_str(), format) {
+                ("mtl", crate::mesh::Format::Obj)
+                | ("gltf", crate::mesh::Format::Gltf)
+                | ("gltf", crate::mesh::Format::Glb) => true,
+                (name @ ("mtl" | "gltf"), f) => {
+                    return Err(self.err(
+                        m.material.span(),
+                        format!("mesh[{i}].material"),
+                        format!(
+                            "material = {name:?} reads the materials of {} files; {} is {} {} \
+                             file (use a scene material{})",
+                            if name == "mtl" { "OBJ (MTL)" } else { "glTF" },
+                            path.display(),
+                            if f == crate::mesh::Format::Obj {
+                                "an"
+                            } else {
+                                "a"
+                            },
+                            f.name(),
+                            if matches!(f, crate::mesh::Format::Gltf | crate::mesh::Format::Glb) {
+                                ", or \"gltf\""
+                            } else if f == crate::mesh::Format::Obj {
+                                ", or \"mtl\""
+                            } else {
+                                ""
+                            }
+                        ),
+                    ));
+                }
+                _ => false,
+            };
+            let (material, mtl) = if from_file {
                 if !path.exists() {
                     return Err(self.err(
                         m.path.span(),
                         format!("mesh[{i}].path"),
                         format!(
-                            "{} not found (material = \"mtl\" reads it now)",
-                            path.display()
+                            "{} not found (material = {:?} reads it now)",
+                            path.display(),
+                            m.material.get_ref()
                         ),
                     ));
                 }
                 let base = (materials.len() + library.len()) as u32;
-                let binding = super::mtl::bind(&path, fallback, base, &mut library)?;
+                let binding = if format == crate::mesh::Format::Obj {
+                    super::mtl::bind(&path, fallback, base, &mut library)?
+                } else {
+                    super::mtl::bind_gltf(&path, fallback, base, &mut library).map_err(|e| {
+                        self.err(
+                            m.material.span(),
+                            format!("mesh[{i}].material"),
+                            crate::error::chain(&e),
+                        )
+                    })?
+                };
                 (fallback.unwrap_or(0), Some(binding))
             } else {
                 if let Some(f) = &m.fallback_material {
                     return Err(self.err(
                         f.span(),
                         format!("mesh[{i}].fallback_material"),
-                        "only meaningful with material = \"mtl\"",
+                        "only meaningful with material = \"mtl\" or \"gltf\"",
                     ));
                 }
                 (find(&m.material, format!("mesh[{i}].material"))?, None)
@@ -691,8 +743,15 @@ impl Cx<'_> {
         }
 
         materials.extend(library);
+        if let Some(from) = &lights_from {
+            lights.extend(self.gltf_lights(from, &meshes)?);
+        }
         let camera = match (auto, camera) {
             (_, Some(camera)) => camera,
+            (None, None) if from_gltf.is_some() => {
+                let span = from_gltf.expect("checked");
+                self.gltf_camera(span, &image, &meshes)?
+            }
             (view, None) => {
                 let view = view.expect("a camera is framed or given");
                 self.framed(&raw.camera, view, &image, &spheres, &meshes)?
@@ -971,7 +1030,9 @@ impl Cx<'_> {
             ));
         }
         let from = match &c.from {
-            Some(f) => self.direction(f, "camera.from")?.as_dvec3(),
+            Some(f) => self
+                .direction(&self.camera_from_direction(f)?, "camera.from")?
+                .as_dvec3(),
             None => super::framing::DEFAULT_FROM,
         };
         let fov_y = match &c.fov_y {
@@ -979,6 +1040,124 @@ impl Cx<'_> {
             None => super::framing::DEFAULT_FOV_Y,
         };
         Ok(Some((from, fov_y)))
+    }
+
+    /// `camera.from` as a direction (three numbers).
+    fn camera_from_direction(&self, f: &Spanned<toml::Value>) -> Result<V3, SceneError> {
+        let value = Arr3::deserialize(f.get_ref().clone())
+            .map_err(|e| self.err(f.span(), "camera.from", e.to_string()))?;
+        Ok(Spanned::new(f.span(), value))
+    }
+
+    /// `[camera] from = "gltf"` (SPEC §15): the span of the key when the camera comes from the
+    /// first glTF mesh's file, `None` otherwise. No other camera key may be given with it but
+    /// nothing else.
+    fn camera_from_gltf(
+        &self,
+        raw: &Spanned<RawCamera>,
+    ) -> Result<Option<Range<usize>>, SceneError> {
+        let c = raw.get_ref();
+        let Some(from) = &c.from else { return Ok(None) };
+        let Some(name) = from.get_ref().as_str() else {
+            return Ok(None);
+        };
+        if name != "gltf" {
+            return Err(self.err(
+                from.span(),
+                "camera.from",
+                format!("unknown value {name:?}; expected \"gltf\" or a direction [x, y, z]"),
+            ));
+        }
+        let others = [
+            ("eye", c.eye.as_ref().map(Spanned::span)),
+            ("u", c.u.as_ref().map(Spanned::span)),
+            ("v", c.v.as_ref().map(Spanned::span)),
+            ("w", c.w.as_ref().map(Spanned::span)),
+            ("window", c.window.as_ref().map(Spanned::span)),
+            ("distance", c.distance.as_ref().map(Spanned::span)),
+            ("look_at", c.look_at.as_ref().map(Spanned::span)),
+            ("up", c.up.as_ref().map(Spanned::span)),
+            ("fov_y", c.fov_y.as_ref().map(Spanned::span)),
+            ("interpolation", c.interpolation.as_ref().map(Spanned::span)),
+            ("orbit", c.orbit.as_ref().map(Spanned::span)),
+            ("frame", c.frame.as_ref().map(Spanned::span)),
+            ("key", c.key.as_ref().map(|_| from.span())),
+        ];
+        if let Some((k, sp)) = others
+            .iter()
+            .find_map(|(k, sp)| sp.clone().map(|sp| (*k, sp)))
+        {
+            return Err(self.err(
+                sp,
+                format!("camera.{k}"),
+                "cannot be combined with from = \"gltf\" (the file gives the whole view)",
+            ));
+        }
+        Ok(Some(from.span()))
+    }
+
+    /// The camera of `from = "gltf"`: the first perspective camera of the first glTF mesh
+    /// ([`crate::mesh::gltf::camera`]) on this scene's image.
+    fn gltf_camera(
+        &self,
+        span: Range<usize>,
+        image: &ImageSettings,
+        meshes: &[MeshRef],
+    ) -> Result<Camera, SceneError> {
+        let fail = |message: String| self.err(span.clone(), "camera.from", message);
+        let gltf = meshes
+            .iter()
+            .find(|m| {
+                matches!(
+                    crate::mesh::check_format(&m.path),
+                    Ok(crate::mesh::Format::Gltf | crate::mesh::Format::Glb)
+                )
+            })
+            .ok_or_else(|| fail("from = \"gltf\" needs a [[mesh]] that is a glTF file".into()))?;
+        let view = crate::mesh::gltf::camera(&gltf.path)
+            .map_err(|e| fail(format!("no camera: {}", crate::error::chain(&e))))?;
+        view.camera(image.width, image.height)
+            .map_err(|e| fail(format!("the glTF camera has no view: {e}")))
+    }
+
+    /// `[render] lights_from = "gltf"`: the point lights of the first glTF mesh
+    /// ([`crate::mesh::gltf::point_lights`]); a file without lights is an error.
+    fn gltf_lights(
+        &self,
+        from: &Spanned<String>,
+        meshes: &[MeshRef],
+    ) -> Result<Vec<PointLight>, SceneError> {
+        let fail = |message: String| self.err(from.span(), "render.lights_from", message);
+        if from.get_ref() != "gltf" {
+            return Err(fail(format!(
+                "unknown value {:?}; expected \"gltf\"",
+                from.get_ref()
+            )));
+        }
+        let gltf = meshes
+            .iter()
+            .find(|m| {
+                matches!(
+                    crate::mesh::check_format(&m.path),
+                    Ok(crate::mesh::Format::Gltf | crate::mesh::Format::Glb)
+                )
+            })
+            .ok_or_else(|| fail("needs a [[mesh]] that is a glTF file".into()))?;
+        let found = crate::mesh::gltf::point_lights(&gltf.path)
+            .map_err(|e| fail(crate::error::chain(&e)))?;
+        if found.is_empty() {
+            return Err(fail(format!(
+                "{} has no KHR_lights_punctual light in its default scene",
+                gltf.path.display()
+            )));
+        }
+        Ok(found
+            .into_iter()
+            .map(|l| PointLight {
+                position: l.position,
+                intensity: Vec3::from_array(l.intensity),
+            })
+            .collect())
     }
 
     /// The camera of `frame = "auto"`: [`super::framing::frame_box`] of the bounds of every

@@ -32,6 +32,9 @@ pub struct MtlBinding {
     /// Scene materials some face uses (those named by `usemtl`, and the fallback if faces come
     /// before any `usemtl`).
     pub used: Vec<u32>,
+    /// One line per thing the libraries hold that is not used (an MTL key, once per key and
+    /// file, with its first line; glTF textures), shown when the scene is loaded.
+    pub warnings: Vec<String>,
 }
 
 /// The MTL material `m` as a scene material named `prefix:NAME`.
@@ -82,23 +85,26 @@ pub fn bind(
     let mut names: HashMap<String, u32> = HashMap::new();
     let mut used: Vec<u32> = vec![];
     let mut current: Option<u32> = None;
+    let mut warnings = vec![];
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
         let mut tokens = raw.split_whitespace();
         match tokens.next() {
             Some("mtllib") => {
                 for lib in tokens {
-                    let lib_materials = read_library(&dir.join(lib)).map_err(|e| match e {
-                        SceneError::MeshIo { source, .. } => invalid(
-                            line,
-                            "mtllib",
-                            format!(
-                                "cannot read material library {lib}: {}",
-                                crate::error::chain(&source)
+                    let (lib_materials, unused) =
+                        read_library_noting(&dir.join(lib)).map_err(|e| match e {
+                            SceneError::MeshIo { source, .. } => invalid(
+                                line,
+                                "mtllib",
+                                format!(
+                                    "cannot read material library {lib}: {}",
+                                    crate::error::chain(&source)
+                                ),
                             ),
-                        ),
-                        e => e,
-                    })?;
+                            e => e,
+                        })?;
+                    warnings.extend(unused);
                     for m in &lib_materials {
                         names.insert(m.name.clone(), index(materials));
                         materials.push(convert(&obj.display().to_string(), m));
@@ -140,6 +146,7 @@ pub fn bind(
         count: index(materials) - first,
         fallback,
         used,
+        warnings,
     })
 }
 
@@ -150,16 +157,49 @@ pub fn bind(
 /// statement before any `newmtl`, an unknown keyword, or a spectral or CIE XYZ colour is an error
 /// naming the file and line. A file that cannot be read is [`SceneError::MeshIo`].
 pub fn read_library(path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
+    Ok(read_library_noting(path)?.0)
+}
+
+/// [`read_library`], with one warning line for every key the renderer does not use (once per
+/// key: `FILE:LINE: MTL key `map_Kd` is not used (texture maps are not read)`).
+pub fn read_library_noting(path: &Path) -> Result<(Vec<tobj::Material>, Vec<String>), SceneError> {
     let text =
         read_text_capped(path, MTL_CAP, "MTL files").map_err(|source| SceneError::MeshIo {
             file: path.to_path_buf(),
             source,
         })?;
-    parse_library(&text, path)
+    parse_library_noting(&text, path)
 }
 
 /// [`read_library`] of MTL text already read; `path` names the file in errors.
 pub fn parse_library(text: &str, path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
+    Ok(parse_library_noting(text, path)?.0)
+}
+
+/// Why an MTL key is not used, or `None` for the keys the renderer reads (`newmtl`, `Ka`, `Kd`,
+/// `Ks`, `Ns`, `illum`).
+pub fn unused_reason(key: &str) -> Option<&'static str> {
+    Some(match key {
+        "newmtl" | "Ka" | "Kd" | "Ks" | "Ns" | "illum" => return None,
+        _ if key.starts_with("map_")
+            || matches!(key, "bump" | "disp" | "decal" | "refl" | "norm") =>
+        {
+            "texture maps are not read"
+        }
+        "d" | "Tr" | "Tf" | "Ni" => "transparency and refraction are not rendered",
+        "Ke" => "emission is not rendered",
+        "sharpness" => "reflection-map sharpness is not read",
+        _ => "physically based MTL extensions are not rendered",
+    })
+}
+
+/// [`parse_library`], with [`read_library_noting`]'s warnings.
+pub fn parse_library_noting(
+    text: &str,
+    path: &Path,
+) -> Result<(Vec<tobj::Material>, Vec<String>), SceneError> {
+    let mut warned: Vec<String> = vec![];
+    let mut warnings: Vec<String> = vec![];
     let mut out: Vec<tobj::Material> = vec![];
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
@@ -274,8 +314,62 @@ pub fn parse_library(text: &str, path: &Path) -> Result<Vec<tobj::Material>, Sce
                 ));
             }
         }
+        if let Some(reason) = unused_reason(key)
+            && !warned.iter().any(|w| w == key)
+        {
+            warned.push(key.to_owned());
+            warnings.push(format!(
+                "{}:{line}: MTL key `{key}` is not used ({reason})",
+                path.display()
+            ));
+        }
     }
-    Ok(out)
+    Ok((out, warnings))
+}
+
+/// Binds a glTF file's materials (`material = "gltf"`, SPEC §15) as [`bind`] binds an OBJ's MTL
+/// libraries: every material of `gltf` ([`crate::mesh::gltf::materials`]) is appended to
+/// `materials` (scene material `base + materials.len()` onwards), in file order. Primitives
+/// without a material take `fallback`; without one, that is an error. Ignored textures are one
+/// warning line.
+pub fn bind_gltf(
+    gltf: &Path,
+    fallback: Option<u32>,
+    base: u32,
+    materials: &mut Vec<Material>,
+) -> Result<MtlBinding, crate::mesh::MeshError> {
+    let g = crate::mesh::gltf::materials(gltf)?;
+    let first = base + materials.len() as u32;
+    materials.extend(g.materials.iter().cloned());
+    let mut used: Vec<u32> = g.used.iter().map(|&i| first + i).collect();
+    if g.unassigned {
+        let Some(f) = fallback else {
+            return Err(crate::mesh::MeshError::Format {
+                path: gltf.to_path_buf(),
+                message: "a triangle primitive has no material: give its [[mesh]] a \
+                          fallback_material"
+                    .into(),
+            });
+        };
+        if !used.contains(&f) {
+            used.push(f);
+        }
+    }
+    let mut warnings = vec![];
+    if !g.textures.is_empty() {
+        warnings.push(format!(
+            "{}: textures are ignored (material = \"gltf\" maps the factors only): {}",
+            gltf.display(),
+            g.textures.join(", ")
+        ));
+    }
+    Ok(MtlBinding {
+        first,
+        count: g.materials.len() as u32,
+        fallback,
+        used,
+        warnings,
+    })
 }
 
 /// [`read_library`] in the form tobj's OBJ loader takes: the materials and their indices by name
@@ -297,4 +391,41 @@ pub type MtlLibrary = (Vec<tobj::Material>, HashMap<String, usize>);
 fn clip(w: &str) -> String {
     let s: String = w.chars().take(24).collect();
     s.escape_debug().to_string()
+}
+
+/// The warnings of loading `scene`: each mesh binding's ([`MtlBinding::warnings`]), then one
+/// line per scene material that no primitive can use (for example one defined beside
+/// `material = "mtl"`, whose faces take their MTL materials).
+pub fn load_warnings(scene: &super::Scene) -> Vec<String> {
+    let mut out: Vec<String> = scene
+        .meshes
+        .iter()
+        .filter_map(|m| m.mtl.as_ref())
+        .flat_map(|b| b.warnings.iter().cloned())
+        .collect();
+    let bound = |i: u32| {
+        scene
+            .meshes
+            .iter()
+            .filter_map(|m| m.mtl.as_ref())
+            .any(|b| (b.first..b.first + b.count).contains(&i))
+    };
+    let used: Vec<&Material> = scene.used_materials().collect();
+    let from_files = scene.meshes.iter().any(|m| m.mtl.is_some());
+    for (i, m) in scene.materials.iter().enumerate() {
+        if bound(i as u32) || used.iter().any(|u| std::ptr::eq(*u, m)) {
+            continue;
+        }
+        let hint = if from_files {
+            " (faces of a mesh with material = \"mtl\" or \"gltf\" take the file's materials, \
+             and only faces without one take its fallback_material)"
+        } else {
+            ""
+        };
+        out.push(format!(
+            "{}: material `{}` is not used by any primitive{hint}",
+            scene.name, m.name
+        ));
+    }
+    out
 }

@@ -1,5 +1,6 @@
-//! Loading a world's triangles through the tree cache ([`crate::cache`]): the OBJ files are read
-//! and hashed once; on a hit the merged mesh and tree come from the cache entry, on a miss they
+//! Loading a world's triangles through the tree cache ([`crate::cache`]): the mesh files (OBJ,
+//! PLY, glTF: [`crate::mesh::read_bytes`]) are read and hashed once, with their format and any
+//! external glTF buffers ([`crate::mesh::cache_sources`]); on a hit the merged mesh and tree come from the cache entry, on a miss they
 //! are parsed ([`crate::obj_fast`]) and built, and the entry is written for the next run.
 //!
 //! Either way the tree is built in the frame centred on the merged mesh (as `kdtree build` and
@@ -47,7 +48,22 @@ pub struct Setup {
 impl World {
     /// [`World::load_timed`] through a tree cache (`None`: build without one). A corrupt,
     /// truncated or stale entry is rebuilt and overwritten, with a warning in [`Setup`].
+    ///
+    /// The warnings start with the scene's own ([`crate::scene::mtl::load_warnings`]: MTL keys
+    /// and glTF textures not used, scene materials no primitive uses).
     pub fn load_cached(
+        scene: &Scene,
+        cache: Option<&TreeCache>,
+    ) -> Result<(World, Setup), LoadError> {
+        let (world, mut setup) = World::load_cached_quietly(scene, cache)?;
+        let mut warnings = crate::scene::mtl::load_warnings(scene);
+        warnings.append(&mut setup.warnings);
+        setup.warnings = warnings;
+        Ok((world, setup))
+    }
+
+    /// [`World::load_cached`] without the scene's own warnings.
+    fn load_cached_quietly(
         scene: &Scene,
         cache: Option<&TreeCache>,
     ) -> Result<(World, Setup), LoadError> {
@@ -75,18 +91,28 @@ impl World {
         };
         let start = Instant::now();
         let mut files = Vec::with_capacity(scene.meshes.len());
+        // Besides each file's bytes: what else its key is made of (format tags, glTF buffers).
+        let mut extra = Vec::with_capacity(scene.meshes.len());
         for m in &scene.meshes {
             check_mesh_path(scene, m)?;
             let bytes = crate::cache::read_parallel(&m.path).map_err(|source| MeshError::Read {
                 path: m.path.clone(),
                 source,
             })?;
+            if cache.is_some() {
+                extra.push(crate::mesh::cache_sources(&m.path, &bytes)?);
+            }
             files.push(bytes);
         }
         let mut setup = Setup::default();
         let mut cached = None;
         let key = cache.map(|c| {
-            let slices: Vec<&[u8]> = files.iter().map(|f| f.as_slice()).collect();
+            let mut slices: Vec<&[u8]> = Vec::with_capacity(files.len());
+            for (f, e) in files.iter().zip(&extra) {
+                slices.extend(e.first().map(Vec::as_slice));
+                slices.push(f);
+                slices.extend(e.iter().skip(1).map(Vec::as_slice));
+            }
             (c, CacheKey::new(method, &slices))
         });
         let load_seconds = start.elapsed().as_secs_f64();

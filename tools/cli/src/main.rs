@@ -723,7 +723,7 @@ fn build_tree(
         );
     } else {
         println!(
-            "built {method:?} tree over {} triangles in {:.1} ms (OBJ read in {:.1} ms, {} thread(s))",
+            "built {method:?} tree over {} triangles in {:.1} ms (mesh read in {:.1} ms, {} thread(s))",
             m.len(),
             build * 1e3,
             load * 1e3,

@@ -51,7 +51,7 @@ fn other_mesh_formats_are_named_not_read_as_scene_files() {
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
-        err.contains("bunny.ply") && err.contains("not supported"),
+        err.contains("bunny.ply") && err.contains("no `vertex` element"),
         "{err}"
     );
     assert!(!err.contains("TOML") && !err.contains("expected"), "{err}");

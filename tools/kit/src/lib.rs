@@ -7,6 +7,7 @@
 //! the project: `../shared/peers/compare` measures against them side by side.
 
 pub mod bench;
+pub mod meshes;
 pub mod oracle;
 pub mod report;
 pub mod testkit;
