@@ -9,6 +9,7 @@ use std::path::Path;
 use glam::{DMat4, DVec3};
 use wavefront::World;
 use wavefront::mesh::{ObjMesh, ObjRead};
+use wavefront::scene::{Falloff, LightKind};
 use wavefront_kit::meshes::{PlyEncoding, PolyMesh};
 use wavefront_kit::oracle::compare_rgb8;
 use wavefront_kit::testkit::{Scratch, oracle_png_bytes, render_png_bytes};
@@ -318,7 +319,7 @@ fn unused_mtl_keys_are_one_warning_each_with_their_line() {
 }
 
 #[test]
-fn point_lights_can_come_from_the_gltf_file_and_other_kinds_are_an_error() {
+fn gltf_lights_become_spec_14_lights_with_inverse_square_falloff() {
     let dir = Scratch::new("gltf-lights");
     let mesh = PolyMesh::bumpy(3);
     let with_light = |kind: &str| {
@@ -336,28 +337,66 @@ fn point_lights_can_come_from_the_gltf_file_and_other_kinds_are_an_error() {
                 ),
             )
     };
-    dir.write(
-        "p.gltf",
-        &with_light(r#"{"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 2.0}"#),
-    );
     let toml =
         scene_text("p.gltf", "m").replace("[render]\n", "[render]\nlights_from = \"gltf\"\n");
-    let scene = wavefront::scene::file::parse(&toml, &dir.join("s.toml")).unwrap();
-    // The scene's own light first, then the file's.
-    assert_eq!(scene.lights.len(), 2);
-    assert_eq!(scene.lights[1].position, DVec3::new(1.5, 3.0, -2.0));
-    assert_eq!(scene.lights[1].intensity, glam::Vec3::new(2.0, 1.0, 0.5));
-    for kind in [
-        r#"{"type": "spot", "spot": {"outerConeAngle": 0.5}}"#,
-        r#"{"type": "directional"}"#,
-    ] {
+    let parse = |kind: &str| {
         dir.write("p.gltf", &with_light(kind));
-        let e = wavefront::scene::file::parse(&toml, &dir.join("s.toml")).unwrap_err();
-        let msg = e.to_string();
+        wavefront::scene::file::parse(&toml, &dir.join("s.toml"))
+    };
+    let at = DVec3::new(1.5, 3.0, -2.0);
+    // The scene's own light first, then the file's; a light shines along its node's -Z.
+    let scene = parse(r#"{"type": "point", "color": [1.0, 0.5, 0.25], "intensity": 2.0}"#).unwrap();
+    assert_eq!(scene.lights.len(), 2);
+    assert_eq!(scene.lights[1].kind, LightKind::Point { position: at });
+    assert_eq!(scene.lights[1].intensity, glam::Vec3::new(2.0, 1.0, 0.5));
+    assert_eq!(scene.lights[1].falloff, Falloff::InverseSquare);
+    let spot =
+        parse(r#"{"type": "spot", "spot": {"innerConeAngle": 0.25, "outerConeAngle": 0.5}}"#)
+            .unwrap();
+    let LightKind::Spot {
+        position,
+        direction,
+        cone,
+        penumbra,
+    } = spot.lights[1].kind
+    else {
+        panic!("not a spot: {:?}", spot.lights[1]);
+    };
+    assert_eq!((position, direction), (at, DVec3::NEG_Z));
+    // Full angle 2 · outer; full intensity inside 2 · inner = cone − penumbra.
+    assert!((cone - 2.0 * 0.5f64.to_degrees()).abs() < 1e-9, "{cone}");
+    assert!(
+        (cone - penumbra - 2.0 * 0.25f64.to_degrees()).abs() < 1e-9,
+        "{penumbra}"
+    );
+    assert_eq!(spot.lights[1].falloff, Falloff::InverseSquare);
+    let sun = parse(r#"{"type": "directional", "intensity": 3.0}"#).unwrap();
+    assert_eq!(
+        sun.lights[1].kind,
+        LightKind::Directional {
+            direction: DVec3::NEG_Z
+        }
+    );
+    assert_eq!(sun.lights[1].falloff, Falloff::None);
+    assert_eq!(sun.lights[1].intensity, glam::Vec3::splat(3.0));
+    for (kind, problem) in [
+        (
+            r#"{"type": "spot", "spot": {"innerConeAngle": 0.5, "outerConeAngle": 0.5}}"#,
+            "spot cone angles",
+        ),
+        (
+            r#"{"type": "spot", "spot": {"outerConeAngle": 1.5707963267948966}}"#,
+            "spot cone angles",
+        ),
+        (
+            r#"{"type": "point", "intensity": -1.0}"#,
+            "must be finite and ≥ 0",
+        ),
+    ] {
+        let msg = parse(kind).unwrap_err().to_string();
         assert!(
-            msg.contains("render.lights_from")
-                && msg.contains("spot/directional glTF lights need SPEC §14 lights"),
-            "{msg}"
+            msg.contains("render.lights_from") && msg.contains(problem),
+            "{kind}: {msg}"
         );
     }
 }

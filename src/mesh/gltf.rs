@@ -643,21 +643,49 @@ pub fn camera(path: &Path) -> Result<LookAt, MeshError> {
     found.ok_or_else(|| fail(path, "no perspective camera in the default scene"))
 }
 
-/// A `KHR_lights_punctual` point light: world position and intensity (`color · intensity`, as
-/// given).
+/// A `KHR_lights_punctual` light in world coordinates: what it is, and its intensity
+/// (`color · intensity`, as given).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GltfPointLight {
-    /// The node's origin in world coordinates.
-    pub position: DVec3,
+pub struct GltfLight {
+    /// Point, spot or directional, placed by its node's world transform.
+    pub kind: GltfLightKind,
     /// `color · intensity` per channel.
     pub intensity: [f32; 3],
 }
 
-/// The `KHR_lights_punctual` lights of the glTF file `path`'s default scene, in node order.
-/// Only point lights are read; a spot or directional light is an error naming it ("spot/directional
-/// glTF lights need SPEC §14 lights"). The lights are read from the JSON (the crate's accessors
-/// unwrap, so a light index out of range would panic there).
-pub fn point_lights(path: &Path) -> Result<Vec<GltfPointLight>, MeshError> {
+/// The kinds of `KHR_lights_punctual` light. A light shines along its node's local −Z axis.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum GltfLightKind {
+    /// A point light at the node's origin.
+    Point {
+        /// The node's origin in world coordinates.
+        position: DVec3,
+    },
+    /// A spot light at the node's origin along its −Z axis.
+    Spot {
+        /// The node's origin in world coordinates.
+        position: DVec3,
+        /// The node's −Z axis in world coordinates (not necessarily unit).
+        direction: DVec3,
+        /// `innerConeAngle` (radians, from the axis; default 0).
+        inner: f64,
+        /// `outerConeAngle` (radians, from the axis; default π/4).
+        outer: f64,
+    },
+    /// A directional light along the node's −Z axis.
+    Directional {
+        /// The node's −Z axis in world coordinates (not necessarily unit).
+        direction: DVec3,
+    },
+}
+
+/// The `KHR_lights_punctual` lights of the glTF file `path`'s default scene, in node order. The
+/// lights are read from the JSON (the crate's accessors unwrap, so a light index out of range
+/// would panic there). A light whose values are not finite, whose intensity is negative, whose
+/// node transform collapses its axis, or whose cone angles are not `0 ≤ inner < outer < π/2` (a
+/// SPEC §14 cone is under 180°), is
+/// an error naming it.
+pub fn lights(path: &Path) -> Result<Vec<GltfLight>, MeshError> {
     use ::gltf::json::extensions::scene::khr_lights_punctual::Type;
     use ::gltf::json::validation::Checked;
     let doc = read_document(path)?;
@@ -686,30 +714,49 @@ pub fn point_lights(path: &Path) -> Result<Vec<GltfPointLight>, MeshError> {
                 ),
             )
         })?;
-        match light.type_ {
-            Checked::Valid(Type::Point) => {}
-            Checked::Valid(Type::Spot | Type::Directional) => {
-                return Err(fail(
-                    path,
-                    format!(
-                        "light {i} (node {}): spot/directional glTF lights need SPEC §14 lights",
-                        node.index()
-                    ),
-                ));
-            }
-            Checked::Invalid => return Err(fail(path, format!("light {i}: unknown type"))),
-        }
+        let bad = |what: &str| fail(path, format!("light {i} (node {}): {what}", node.index()));
         let intensity = light.color.map(|c| c * light.intensity);
         if !intensity.iter().all(|c| c.is_finite() && *c >= 0.0) {
-            return Err(fail(
-                path,
-                format!("light {i}: color · intensity must be finite and ≥ 0"),
+            return Err(bad("color · intensity must be finite and ≥ 0"));
+        }
+        let position = world.transform_point3(DVec3::ZERO);
+        let direction = world.transform_vector3(DVec3::NEG_Z);
+        let aimed = direction.is_finite() && direction != DVec3::ZERO;
+        let kind = match light.type_ {
+            Checked::Valid(Type::Point) => GltfLightKind::Point { position },
+            Checked::Valid(Type::Directional) if aimed => GltfLightKind::Directional { direction },
+            Checked::Valid(Type::Spot) if aimed => {
+                let (inner, outer) = light
+                    .spot
+                    .as_ref()
+                    .map_or((0.0, std::f32::consts::FRAC_PI_4), |s| {
+                        (s.inner_cone_angle, s.outer_cone_angle)
+                    });
+                let (inner, outer) = (f64::from(inner), f64::from(outer));
+                if !(0.0 <= inner && inner < outer && outer < std::f64::consts::FRAC_PI_2) {
+                    return Err(bad(&format!(
+                        "spot cone angles must be 0 ≤ innerConeAngle < outerConeAngle < π/2 \
+                         (got {inner} and {outer})"
+                    )));
+                }
+                GltfLightKind::Spot {
+                    position,
+                    direction,
+                    inner,
+                    outer,
+                }
+            }
+            Checked::Valid(_) => {
+                return Err(bad("the node transform gives the light no direction"));
+            }
+            Checked::Invalid => return Err(fail(path, format!("light {i}: unknown type"))),
+        };
+        if !position.is_finite() {
+            return Err(bad(
+                "the node transform puts the light at a non-finite position",
             ));
         }
-        out.push(GltfPointLight {
-            position: world.transform_point3(DVec3::ZERO),
-            intensity,
-        });
+        out.push(GltfLight { kind, intensity });
         Ok(())
     })?;
     Ok(out)

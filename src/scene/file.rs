@@ -1120,13 +1120,14 @@ impl Cx<'_> {
             .map_err(|e| fail(format!("the glTF camera has no view: {e}")))
     }
 
-    /// `[render] lights_from = "gltf"`: the point lights of the first glTF mesh
-    /// ([`crate::mesh::gltf::point_lights`]); a file without lights is an error.
+    /// `[render] lights_from = "gltf"`: the `KHR_lights_punctual` lights of the first glTF mesh
+    /// ([`crate::mesh::gltf::lights`]) as SPEC §14 lights with inverse-square falloff (SPEC §15;
+    /// a directional light has none); a file without lights is an error.
     fn gltf_lights(
         &self,
         from: &Spanned<String>,
         meshes: &[MeshRef],
-    ) -> Result<Vec<PointLight>, SceneError> {
+    ) -> Result<Vec<Light>, SceneError> {
         let fail = |message: String| self.err(from.span(), "render.lights_from", message);
         if from.get_ref() != "gltf" {
             return Err(fail(format!(
@@ -1143,21 +1144,15 @@ impl Cx<'_> {
                 )
             })
             .ok_or_else(|| fail("needs a [[mesh]] that is a glTF file".into()))?;
-        let found = crate::mesh::gltf::point_lights(&gltf.path)
-            .map_err(|e| fail(crate::error::chain(&e)))?;
+        let found =
+            crate::mesh::gltf::lights(&gltf.path).map_err(|e| fail(crate::error::chain(&e)))?;
         if found.is_empty() {
             return Err(fail(format!(
                 "{} has no KHR_lights_punctual light in its default scene",
                 gltf.path.display()
             )));
         }
-        Ok(found
-            .into_iter()
-            .map(|l| PointLight {
-                position: l.position,
-                intensity: Vec3::from_array(l.intensity),
-            })
-            .collect())
+        Ok(found.into_iter().map(gltf_light).collect())
     }
 
     /// The camera of `frame = "auto"`: [`super::framing::frame_box`] of the bounds of every
@@ -1327,6 +1322,36 @@ impl Cx<'_> {
             )?;
         }
         Ok(render)
+    }
+}
+
+/// A glTF light as a SPEC §14 light: the cone's full angle is twice `outerConeAngle` and the
+/// penumbra twice the angle between the cones (full intensity inside `2 · innerConeAngle`), in
+/// degrees; point and spot lights fall off with the inverse square of the distance (SPEC §15).
+fn gltf_light(l: crate::mesh::gltf::GltfLight) -> Light {
+    use crate::mesh::gltf::GltfLightKind as G;
+    let (kind, falloff) = match l.kind {
+        G::Point { position } => (LightKind::Point { position }, Falloff::InverseSquare),
+        G::Directional { direction } => (LightKind::Directional { direction }, Falloff::None),
+        G::Spot {
+            position,
+            direction,
+            inner,
+            outer,
+        } => (
+            LightKind::Spot {
+                position,
+                direction,
+                cone: 2.0 * outer.to_degrees(),
+                penumbra: 2.0 * (outer - inner).to_degrees(),
+            },
+            Falloff::InverseSquare,
+        ),
+    };
+    Light {
+        kind,
+        intensity: Vec3::from_array(l.intensity),
+        falloff,
     }
 }
 
