@@ -16,9 +16,10 @@
 
 use glam::Vec3;
 
-use super::World;
+use super::{SphereBvh, World};
 use crate::frame::{Plane, Sphere};
 use crate::geometry::offset::gamma;
+use crate::geometry::plane;
 use crate::queue::PrimId;
 use crate::queue::lanes::{load1, load3, store3};
 use crate::scene::OffsetMethod;
@@ -157,6 +158,8 @@ fn plane8(r: &Rays8, p: &Plane, best: &[f32; LANES]) -> ([f32; LANES], [bool; LA
 /// gives them for a world of these spheres and planes only.
 pub(crate) struct Closest<'a> {
     pub spheres: &'a [Sphere],
+    /// The spheres' BVH: when given, each ray goes through it (then the planes) on its own.
+    pub sphere_bvh: Option<&'a SphereBvh>,
     pub planes: &'a [Plane],
     pub origins: &'a [Vec3],
     pub dirs: &'a [Vec3],
@@ -202,6 +205,25 @@ impl Kernel for Closest<'_> {
     type Output = ();
     #[inline(always)]
     fn run(self, _level: Level) {
+        if let Some(bvh) = self.sphere_bvh {
+            let ns = self.spheres.len() as u32;
+            for i in 0..self.origins.len() {
+                let (o, d) = (self.origins[i], self.dirs[i]);
+                let (mut best, mut prim) = bvh.closest(o, d, self.t_max[i]);
+                for (k, p) in self.planes.iter().enumerate() {
+                    if let Some(t) = plane::intersect(o, d, p.point, p.normal, best) {
+                        (best, prim) = (t, ns + k as u32);
+                    }
+                }
+                self.out_t[i] = if prim == PrimId::NONE.0 {
+                    f32::INFINITY
+                } else {
+                    best
+                };
+                self.out_prim[i] = PrimId(prim);
+            }
+            return;
+        }
         let n = self.origins.len();
         let mut start = 0;
         while start < n {
@@ -225,6 +247,8 @@ impl Kernel for Closest<'_> {
 /// [`super::World::intersect_occluded`] gives it for a world of these spheres and planes only.
 pub(crate) struct Occluded<'a> {
     pub spheres: &'a [Sphere],
+    /// The spheres' BVH: when given, each ray goes through it (then the planes) on its own.
+    pub sphere_bvh: Option<&'a SphereBvh>,
     pub planes: &'a [Plane],
     pub origins: &'a [Vec3],
     pub dirs: &'a [Vec3],
@@ -236,6 +260,17 @@ impl Kernel for Occluded<'_> {
     type Output = ();
     #[inline(always)]
     fn run(self, _level: Level) {
+        if let Some(bvh) = self.sphere_bvh {
+            for i in 0..self.origins.len() {
+                let (o, d, t_max) = (self.origins[i], self.dirs[i], self.t_max[i]);
+                self.out[i] = bvh.occluded(o, d, t_max)
+                    || self
+                        .planes
+                        .iter()
+                        .any(|p| plane::intersect(o, d, p.point, p.normal, t_max).is_some());
+            }
+            return;
+        }
         let n = self.origins.len();
         let mut start = 0;
         while start < n {
@@ -293,7 +328,7 @@ pub struct SurfaceOut<'a> {
 /// One analytic primitive as the surface kernel reads it: a sphere (`centre`, `radius`) or a
 /// plane (`point` in `centre`, `normal`).
 #[derive(Clone, Copy, Debug, Default)]
-struct PrimEntry {
+pub(super) struct PrimEntry {
     sphere: bool,
     centre: [f32; 3],
     radius: f32,
@@ -433,16 +468,23 @@ impl Kernel for Surfaces<'_, '_> {
     }
 }
 
-/// The world's spheres, then its planes, as the surface kernel reads them (primitive id order).
-fn prim_entries(world: &World) -> impl Iterator<Item = PrimEntry> + '_ {
-    let spheres = world.spheres.iter().map(|s| PrimEntry {
+/// Analytic primitives up to this many are copied into a table on the stack per surface batch;
+/// worlds with more keep theirs ([`World::prim_table`](super::World)).
+pub(super) const SMALL_TABLE: usize = 16;
+
+/// Spheres, then planes, as the surface kernel reads them (primitive id order).
+pub(super) fn prim_entries<'a>(
+    spheres: &'a [Sphere],
+    planes: &'a [Plane],
+) -> impl Iterator<Item = PrimEntry> + 'a {
+    let spheres = spheres.iter().map(|s| PrimEntry {
         sphere: true,
         centre: s.center.to_array(),
         radius: s.radius,
         normal: [0.0; 3],
         material: s.material,
     });
-    let planes = world.planes.iter().map(|p| PrimEntry {
+    let planes = planes.iter().map(|p| PrimEntry {
         sphere: false,
         centre: p.point.to_array(),
         radius: 0.0,
@@ -479,17 +521,17 @@ impl World {
             }
             return;
         }
-        let mut prims = [PrimEntry::default(); 16];
-        let table: Vec<PrimEntry>;
-        let entries = prim_entries(self);
+        let mut prims = [PrimEntry::default(); SMALL_TABLE];
         let prims: &[PrimEntry] = if analytic <= prims.len() {
-            for (slot, e) in prims.iter_mut().zip(entries) {
+            for (slot, e) in prims
+                .iter_mut()
+                .zip(prim_entries(&self.spheres, &self.planes))
+            {
                 *slot = e;
             }
             &prims[..analytic]
         } else {
-            table = entries.collect();
-            &table
+            &self.prim_table
         };
         let triangles = self.triangles.is_some();
         let SurfaceOut {
@@ -655,6 +697,7 @@ mod tests {
                 level,
                 Closest {
                     spheres: world.spheres(),
+                    sphere_bvh: None,
                     planes: world.planes(),
                     origins: o,
                     dirs: d,
@@ -668,6 +711,7 @@ mod tests {
                 level,
                 Occluded {
                     spheres: world.spheres(),
+                    sphere_bvh: None,
                     planes: world.planes(),
                     origins: o,
                     dirs: d,
@@ -811,7 +855,7 @@ mod tests {
             dispatch(
                 level,
                 Surfaces {
-                    prims: &prim_entries(&world).collect::<Vec<_>>(),
+                    prims: &prim_entries(world.spheres(), world.planes()).collect::<Vec<_>>(),
                     prim: &prim,
                     origins: &o,
                     dirs: &d,
