@@ -4,8 +4,9 @@
 //! Reads one box per item; writes [`Bvh`]: 32-byte nodes in depth-first pre-order (an inner
 //! node's first child is the next node, its second child is stored in it) and the item indices
 //! of all leaves, leaf after leaf. Built top-down with a binned surface-area heuristic over the
-//! box centres (16 bins per axis, Wald 2007), sequentially, so the tree depends on nothing but
-//! the boxes. Every item sits in exactly one leaf. Traversal ([`Bvh::visit`]) is front-to-back
+//! box centres (16 bins per axis, Wald 2007; the two halves of large nodes in parallel, joined
+//! in pre-order), so the tree depends on nothing but the boxes, whatever the thread count.
+//! Every item sits in exactly one leaf. Traversal ([`Bvh::visit`]) is front-to-back
 //! by the ray's direction on each node's split axis, with a fixed stack (no allocation per ray)
 //! and a conservative slab test (see [`SlabRay`]).
 
@@ -17,8 +18,10 @@ pub type Aabb = ([f32; 3], [f32; 3]);
 pub const MAX_DEPTH: usize = 48;
 /// Items per leaf above which the builder always splits (when the centres can be split).
 pub const MAX_LEAF: usize = 4;
-/// SAH cost of one node visit, in units of one item test.
-const COST_TRAVERSAL: f32 = 0.5;
+/// SAH cost of one node visit, in units of one item test. On `many-spheres` any value from 0.5
+/// (one sphere per leaf) to 3 traces at the same speed (measured, one thread); 2 makes leaves of
+/// about two spheres and half the nodes of 0.5, which builds faster.
+const COST_TRAVERSAL: f32 = 2.0;
 /// Bins per axis of the binned SAH.
 const BINS: usize = 16;
 
@@ -66,13 +69,14 @@ pub struct Bvh {
     pub items: Vec<u32>,
 }
 
-/// Union of two boxes.
-#[inline]
+/// Union of two boxes (plain comparisons: NaN corners are the builder's only concern for where
+/// an item goes, never for whether it is listed).
+#[inline(always)]
 fn join(a: &Aabb, b: &Aabb) -> Aabb {
     let mut r = *a;
     for k in 0..3 {
-        r.0[k] = r.0[k].min(b.0[k]);
-        r.1[k] = r.1[k].max(b.1[k]);
+        r.0[k] = if b.0[k] < r.0[k] { b.0[k] } else { r.0[k] };
+        r.1[k] = if b.1[k] > r.1[k] { b.1[k] } else { r.1[k] };
     }
     r
 }
@@ -91,20 +95,19 @@ impl Bvh {
     /// Builds a BVH over `boxes` (item `i` has box `boxes[i]`). An empty input gives one empty
     /// leaf.
     pub fn build(boxes: &[Aabb]) -> Bvh {
-        let centres: Vec<[f32; 3]> = boxes
+        let mut prims: Vec<Prim> = boxes
             .iter()
-            .map(|b| [0, 1, 2].map(|k| 0.5 * b.0[k] + 0.5 * b.1[k]))
+            .enumerate()
+            .map(|(i, b)| Prim {
+                bounds: *b,
+                centre: [0, 1, 2].map(|k| 0.5 * b.0[k] + 0.5 * b.1[k]),
+                index: i as u32,
+            })
             .collect();
-        let mut items: Vec<u32> = (0..boxes.len() as u32).collect();
-        let mut b = Builder {
-            boxes,
-            centres: &centres,
-            nodes: Vec::with_capacity(2 * boxes.len() / MAX_LEAF + 1),
-        };
-        b.node(&mut items, 0, 0);
+        let nodes = subtree(&mut prims, 0, 0);
         Bvh {
-            nodes: b.nodes,
-            items,
+            nodes,
+            items: prims.iter().map(|p| p.index).collect(),
         }
     }
 
@@ -121,10 +124,14 @@ impl Bvh {
         walk(&self.nodes, 0)
     }
 
-    /// Visits, front to back, every leaf whose box the ray may meet within `0 ..= limit`
+    /// Visits, nearest first, every leaf whose box the ray may meet within `0 ..= limit`
     /// (conservatively: see [`SlabRay`]), calling `leaf(items, &mut limit)` with the leaf's
     /// range of [`Bvh::items`]; `leaf` may lower `limit` and returns true to stop. Returns true
     /// when a leaf stopped the walk.
+    ///
+    /// Both children of an inner node are tested together: the nearer (by entry `t`) is
+    /// visited, the farther pushed with its entry `t` and skipped when popped beyond the limit
+    /// by then.
     #[inline(always)]
     pub fn visit<const WIDE: bool>(
         &self,
@@ -132,65 +139,143 @@ impl Bvh {
         mut limit: f32,
         mut leaf: impl FnMut(std::ops::Range<usize>, &mut f32) -> bool,
     ) -> bool {
-        let mut stack = [0u32; MAX_DEPTH + 1];
+        // NaN marks a miss: `t <= limit` is false for it.
+        if !(ray.entry::<WIDE>(&self.nodes[0], limit) <= limit) {
+            return false;
+        }
+        let mut stack = [(0u32, 0.0f32); MAX_DEPTH + 1];
         let mut sp = 0usize;
         let mut i = 0usize;
         loop {
             let n = &self.nodes[i];
-            if ray.meets::<WIDE>(n, limit) {
-                if !n.is_leaf() {
-                    // Near child first: the first child holds the lower side of the split axis.
-                    let (near, far) = if ray.neg[n.axis()] {
-                        (n.offset as usize, i + 1)
-                    } else {
-                        (i + 1, n.offset as usize)
-                    };
-                    stack[sp] = far as u32;
-                    sp += 1;
-                    i = near;
-                    continue;
-                }
+            if n.is_leaf() {
                 let start = n.offset as usize;
                 if leaf(start..start + n.count(), &mut limit) {
                     return true;
                 }
+            } else {
+                let (a, b) = (i + 1, n.offset as usize);
+                let ta = ray.entry::<WIDE>(&self.nodes[a], limit);
+                let tb = ray.entry::<WIDE>(&self.nodes[b], limit);
+                let (hit_a, hit_b) = (ta <= limit, tb <= limit);
+                if hit_a && hit_b {
+                    let (near, far, t_far) = if ta <= tb { (a, b, tb) } else { (b, a, ta) };
+                    stack[sp] = (far as u32, t_far);
+                    sp += 1;
+                    i = near;
+                    continue;
+                }
+                if hit_a || hit_b {
+                    i = if hit_a { a } else { b };
+                    continue;
+                }
             }
-            if sp == 0 {
-                return false;
+            loop {
+                if sp == 0 {
+                    return false;
+                }
+                sp -= 1;
+                let (j, t) = stack[sp];
+                if t <= limit {
+                    i = j as usize;
+                    break;
+                }
             }
-            sp -= 1;
-            i = stack[sp] as usize;
         }
     }
 }
 
-struct Builder<'a> {
-    boxes: &'a [Aabb],
-    centres: &'a [[f32; 3]],
+/// One item as the builder moves it: its box, its box's centre and its index (kept together so
+/// that partitioning moves contiguous rows).
+#[derive(Clone, Copy)]
+struct Prim {
+    bounds: Aabb,
+    centre: [f32; 3],
+    index: u32,
+}
+
+/// Nodes above this many items build their two subtrees in parallel (rayon), each into its own
+/// node list, joined in pre-order afterwards: the tree is the same on any number of threads.
+const PARALLEL_MIN: usize = 4096;
+
+/// The subtree over `prims` (which sit at `first..` of the final item list) at `depth`, its
+/// nodes in pre-order with child indices relative to its root (node 0); reorders `prims` into
+/// leaf order.
+fn subtree(prims: &mut [Prim], first: usize, depth: usize) -> Vec<BvhNode> {
+    if prims.len() < PARALLEL_MIN {
+        let mut b = Builder {
+            nodes: Vec::with_capacity(prims.len()),
+        };
+        b.node(prims, first, depth);
+        return b.nodes;
+    }
+    let (root, split) = node_and_split(prims, first, depth);
+    let Some((axis, mid)) = split else {
+        return vec![root];
+    };
+    let (left, right) = prims.split_at_mut(mid);
+    let (l, r) = rayon::join(
+        || subtree(left, first, depth + 1),
+        || subtree(right, first + mid, depth + 1),
+    );
+    let mut nodes = Vec::with_capacity(1 + l.len() + r.len());
+    nodes.push(BvhNode {
+        offset: 1 + l.len() as u32,
+        meta: axis as u32,
+        ..root
+    });
+    for (part, shift) in [(l.as_slice(), 1), (r.as_slice(), 1 + l.len() as u32)] {
+        nodes.extend(part.iter().map(|n| {
+            let mut n = *n;
+            if !n.is_leaf() {
+                n.offset += shift;
+            }
+            n
+        }));
+    }
+    nodes
+}
+
+/// The leaf node over `prims` (at `first..` of the item list) and how to split it, if it is to
+/// be split (see [`split`]).
+fn node_and_split(
+    prims: &mut [Prim],
+    first: usize,
+    depth: usize,
+) -> (BvhNode, Option<(usize, usize)>) {
+    let (mut bounds, mut centres) = (EMPTY, EMPTY);
+    for p in prims.iter() {
+        bounds = join(&bounds, &p.bounds);
+        centres = join(&centres, &(p.centre, p.centre));
+    }
+    let leaf = BvhNode {
+        lo: bounds.0,
+        hi: bounds.1,
+        offset: first as u32,
+        meta: 3 | (prims.len() as u32) << 2,
+    };
+    if prims.len() <= 1 || depth >= MAX_DEPTH {
+        return (leaf, None);
+    }
+    (leaf, split(prims, &bounds, &centres))
+}
+
+/// The sequential builder: appends nodes in pre-order.
+struct Builder {
     nodes: Vec<BvhNode>,
 }
 
-impl Builder<'_> {
-    /// Builds the subtree over `items` (which sit at `first..` of the final item list) at
-    /// `depth`, reordering `items` in place into leaf order; returns its node index.
-    fn node(&mut self, items: &mut [u32], first: usize, depth: usize) -> usize {
+impl Builder {
+    /// Builds the subtree over `prims` (which sit at `first..` of the final item list) at
+    /// `depth`, reordering `prims` in place into leaf order; returns its node index.
+    fn node(&mut self, prims: &mut [Prim], first: usize, depth: usize) -> usize {
         let here = self.nodes.len();
-        let bounds = items
-            .iter()
-            .fold(EMPTY, |b, &i| join(&b, &self.boxes[i as usize]));
-        self.nodes.push(BvhNode {
-            lo: bounds.0,
-            hi: bounds.1,
-            offset: first as u32,
-            meta: 3 | (items.len() as u32) << 2,
-        });
-        if items.len() <= 1 || depth >= MAX_DEPTH {
-            return here;
-        }
-        let Some((axis, mid)) = self.split(items, &bounds) else {
+        let (leaf, split) = node_and_split(prims, first, depth);
+        self.nodes.push(leaf);
+        let Some((axis, mid)) = split else {
             return here;
         };
-        let (left, right) = items.split_at_mut(mid);
+        let (left, right) = prims.split_at_mut(mid);
         self.node(left, first, depth + 1);
         let second = self.node(right, first + mid, depth + 1);
         let n = &mut self.nodes[here];
@@ -198,80 +283,90 @@ impl Builder<'_> {
         n.meta = axis as u32;
         here
     }
+}
 
-    /// The binned-SAH split of `items` (box `bounds`): reorders `items` so the first `mid` go
-    /// left and returns `(axis, mid)`, or `None` when a leaf is cheaper (only for at most
-    /// [`MAX_LEAF`] items). Centres that cannot be binned apart (all equal) are split in half by
-    /// position in the list when there are too many for a leaf.
-    fn split(&self, items: &mut [u32], bounds: &Aabb) -> Option<(usize, usize)> {
-        let n = items.len();
-        let cb = items.iter().fold(EMPTY, |b, &i| {
-            let c = self.centres[i as usize];
-            join(&b, &(c, c))
-        });
-        let bin_of = |axis: usize, i: u32| -> usize {
-            let (lo, hi) = (cb.0[axis], cb.1[axis]);
-            let x = (self.centres[i as usize][axis] - lo) / (hi - lo) * BINS as f32;
-            // NaN (infinite boxes) and the top edge land in a valid bin.
-            (x as usize).min(BINS - 1)
-        };
-        let mut best: Option<(f32, usize, usize)> = None;
+/// The binned-SAH split of `prims` (box `bounds`, centres within `centres`): reorders `prims`
+/// so the first `mid` go left and returns `(axis, mid)`, or `None` when a leaf is cheaper (only
+/// for at most [`MAX_LEAF`] items). Centres that cannot be binned apart (all equal) are split in
+/// half by position when there are too many for a leaf.
+fn split(prims: &mut [Prim], bounds: &Aabb, centres: &Aabb) -> Option<(usize, usize)> {
+    let n = prims.len();
+    // As many bins as items for small nodes (at least 2).
+    let bins = BINS.min(n);
+    let scale = [0, 1, 2].map(|k| bins as f32 / (centres.1[k] - centres.0[k]));
+    let bin_of = |axis: usize, p: &Prim| -> usize {
+        let x = (p.centre[axis] - centres.0[axis]) * scale[axis];
+        // NaN (infinite boxes) and the top edge land in a valid bin.
+        (x as usize).min(bins - 1)
+    };
+    let mut count = [[0u32; BINS]; 3];
+    let mut bin_box = [[EMPTY; BINS]; 3];
+    for p in prims.iter() {
         for axis in 0..3 {
-            if !(cb.1[axis] > cb.0[axis]) {
+            let b = bin_of(axis, p);
+            count[axis][b] += 1;
+            bin_box[axis][b] = join(&bin_box[axis][b], &p.bounds);
+        }
+    }
+    let mut best: Option<(f32, usize, usize)> = None;
+    for axis in 0..3 {
+        if !(centres.1[axis] > centres.0[axis]) {
+            continue;
+        }
+        let (count, bin_box) = (&count[axis], &bin_box[axis]);
+        // Right-to-left sweep: cost of everything right of each boundary.
+        let mut right_cost = [0.0f32; BINS];
+        let (mut acc, mut m) = (EMPTY, 0u32);
+        for b in (1..bins).rev() {
+            acc = join(&acc, &bin_box[b]);
+            m += count[b];
+            right_cost[b] = half_area(&acc) * m as f32;
+        }
+        let (mut acc, mut m) = (EMPTY, 0u32);
+        for b in 1..bins {
+            acc = join(&acc, &bin_box[b - 1]);
+            m += count[b - 1];
+            if m == 0 || m as usize == n {
                 continue;
             }
-            let mut count = [0usize; BINS];
-            let mut bin_box = [EMPTY; BINS];
-            for &i in items.iter() {
-                let b = bin_of(axis, i);
-                count[b] += 1;
-                bin_box[b] = join(&bin_box[b], &self.boxes[i as usize]);
-            }
-            // Right-to-left sweep: cost of everything right of each boundary.
-            let mut right_cost = [0.0f32; BINS];
-            let (mut acc, mut m) = (EMPTY, 0usize);
-            for b in (1..BINS).rev() {
-                acc = join(&acc, &bin_box[b]);
-                m += count[b];
-                right_cost[b] = half_area(&acc) * m as f32;
-            }
-            let (mut acc, mut m) = (EMPTY, 0usize);
-            for b in 1..BINS {
-                acc = join(&acc, &bin_box[b - 1]);
-                m += count[b - 1];
-                if m == 0 || m == n {
-                    continue;
-                }
-                let cost = half_area(&acc) * m as f32 + right_cost[b];
-                if best.is_none_or(|(c, _, _)| cost < c) {
-                    best = Some((cost, axis, b));
-                }
+            let cost = half_area(&acc) * m as f32 + right_cost[b];
+            if best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, b));
             }
         }
-        let area = half_area(bounds);
-        match best {
-            Some((cost, axis, b)) => {
-                let split_cost = COST_TRAVERSAL + cost / area;
-                // A flat or empty box (NaN cost) splits when it must.
-                if n <= MAX_LEAF && !(split_cost < n as f32) {
-                    return None;
-                }
-                Some((axis, partition(items, |i| bin_of(axis, i) < b)))
+    }
+    match best {
+        Some((cost, axis, b)) => {
+            let split_cost = COST_TRAVERSAL + cost / half_area(bounds);
+            // A flat or empty box (NaN cost) splits when it must.
+            if n <= MAX_LEAF && !(split_cost < n as f32) {
+                return None;
             }
-            None if n > MAX_LEAF => Some((0, n / 2)),
-            None => None,
+            Some((axis, partition(prims, |p| bin_of(axis, p) < b)))
         }
+        None if n > MAX_LEAF => Some((0, n / 2)),
+        None => None,
     }
 }
 
-/// Moves the items for which `left` holds to the front, keeping each side's order; returns how
-/// many there are.
-fn partition(items: &mut [u32], left: impl Fn(u32) -> bool) -> usize {
-    let (l, r): (Vec<u32>, Vec<u32>) = items.iter().partition(|&&i| left(i));
-    let mid = l.len();
-    items[..mid].copy_from_slice(&l);
-    items[mid..].copy_from_slice(&r);
-    mid
+/// Moves the items for which `left` holds to the front (Hoare's two-pointer partition); returns
+/// how many there are.
+fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
+    let (mut i, mut j) = (0, prims.len());
+    loop {
+        while i < j && left(&prims[i]) {
+            i += 1;
+        }
+        while i < j && !left(&prims[j - 1]) {
+            j -= 1;
+        }
+        if i >= j {
+            return i;
+        }
+        prims.swap(i, j - 1);
+        i += 1;
+        j -= 1;
+    }
 }
 
 /// Relative widening of a slab's far end: covers the three roundings of `(b − o)·(1/d)` (pbrt's
@@ -338,6 +433,13 @@ impl SlabRay {
     /// True when the ray may meet the node's box within `0 ..= limit` (see [`SlabRay`]).
     #[inline(always)]
     pub fn meets<const WIDE: bool>(&self, n: &BvhNode, limit: f32) -> bool {
+        self.entry::<WIDE>(n, limit) <= limit
+    }
+
+    /// Where the ray may enter the node's box (at least 0, at most `limit`), or NaN when it
+    /// cannot meet it within `0 ..= limit` (see [`SlabRay`]).
+    #[inline(always)]
+    pub fn entry<const WIDE: bool>(&self, n: &BvhNode, limit: f32) -> f32 {
         let mut t0 = 0.0f32;
         let mut t1 = limit;
         for k in 0..3 {
@@ -353,7 +455,7 @@ impl SlabRay {
             t0 = if near > t0 { near } else { t0 };
             t1 = if far < t1 { far } else { t1 };
         }
-        t0 <= t1
+        if t0 <= t1 { t0 } else { f32::NAN }
     }
 }
 
@@ -427,9 +529,19 @@ mod tests {
     }
 
     #[test]
-    fn the_build_depends_only_on_the_boxes() {
-        let boxes = random_boxes(3000, 4);
-        assert_eq!(Bvh::build(&boxes), Bvh::build(&boxes));
+    fn the_build_depends_only_on_the_boxes_not_the_threads() {
+        let boxes = random_boxes(6 * PARALLEL_MIN, 4);
+        let on = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| Bvh::build(&boxes))
+        };
+        let one = on(1);
+        check(&one, &boxes);
+        assert_eq!(one, on(3));
+        assert_eq!(one, Bvh::build(&boxes));
     }
 
     /// The slab test against the exact answer, in f64, on rays grazing box faces and edges:
