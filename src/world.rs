@@ -180,6 +180,13 @@ impl World {
         self
     }
 
+    /// The same world with every sphere tested directly, one by one, however many there are
+    /// (no [`SphereBvh`]): the linear loop the tree's answers are checked against.
+    pub fn with_direct_spheres(mut self) -> World {
+        self.sphere_bvh = None;
+        self
+    }
+
     /// Materials, indexed by the material ids of primitives.
     pub fn materials(&self) -> &[Material] {
         &self.materials
