@@ -10,6 +10,8 @@
 //! by the ray's direction on each node's split axis, with a fixed stack (no allocation per ray)
 //! and a conservative slab test (see [`SlabRay`]).
 
+use std::cmp::Ordering;
+
 /// Axis-aligned box `[lo, hi]` (closed) in `f32`.
 pub type Aabb = ([f32; 3], [f32; 3]);
 
@@ -139,8 +141,8 @@ impl Bvh {
         mut limit: f32,
         mut leaf: impl FnMut(std::ops::Range<usize>, &mut f32) -> bool,
     ) -> bool {
-        // NaN marks a miss: `t <= limit` is false for it.
-        if !(ray.entry::<WIDE>(&self.nodes[0], limit) <= limit) {
+        // NaN marks a miss (and `t <= limit` is false for it below).
+        if ray.entry::<WIDE>(&self.nodes[0], limit).is_nan() {
             return false;
         }
         let mut stack = [(0u32, 0.0f32); MAX_DEPTH + 1];
@@ -310,7 +312,8 @@ fn split(prims: &mut [Prim], bounds: &Aabb, centres: &Aabb) -> Option<(usize, us
     }
     let mut best: Option<(f32, usize, usize)> = None;
     for axis in 0..3 {
-        if !(centres.1[axis] > centres.0[axis]) {
+        // Only axes along which the centres spread (NaN extents are skipped too).
+        if centres.1[axis].partial_cmp(&centres.0[axis]) != Some(Ordering::Greater) {
             continue;
         }
         let (count, bin_box) = (&count[axis], &bin_box[axis]);
@@ -339,7 +342,7 @@ fn split(prims: &mut [Prim], bounds: &Aabb, centres: &Aabb) -> Option<(usize, us
         Some((cost, axis, b)) => {
             let split_cost = COST_TRAVERSAL + cost / half_area(bounds);
             // A flat or empty box (NaN cost) splits when it must.
-            if n <= MAX_LEAF && !(split_cost < n as f32) {
+            if n <= MAX_LEAF && split_cost.partial_cmp(&(n as f32)) != Some(Ordering::Less) {
                 return None;
             }
             Some((axis, partition(prims, |p| bin_of(axis, p) < b)))
@@ -570,7 +573,7 @@ mod tests {
                 }
             }
             let mut d = [0, 1, 2].map(|k| p[k] - o[k]);
-            if (rng.next_u64() as u32) % 8 == 0 {
+            if rng.next_u64().is_multiple_of(8) {
                 d[((rng.next_u64() as u32) % 3) as usize] = 0.0;
             }
             let Some(ray) = SlabRay::new(o, d, 0.0) else {

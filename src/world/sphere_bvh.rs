@@ -108,7 +108,7 @@ impl SphereBvh {
     #[inline(always)]
     fn ray(&self, o: Vec3, d: Vec3) -> Option<(SlabRay, bool)> {
         let far = max_norm(o);
-        let wide = !(far <= self.reach);
+        let wide = far > self.reach || far.is_nan();
         let widen = if wide { far / (1u64 << 40) as f32 } else { 0.0 };
         SlabRay::new(o.to_array(), d.to_array(), widen).map(|r| (r, wide))
     }
