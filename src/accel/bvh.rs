@@ -378,7 +378,7 @@ const FAR_SCALE: f32 = 1.0 + 1.0 / (1 << 20) as f32;
 /// Absolute widening of a slab's far end, in units of `t`: covers products that underflow.
 const FAR_ABS: f32 = 1e-30;
 
-/// The query limit for a best `t` so far: `best` widened by 2⁻¹⁶ relative and [`FAR_ABS`], so a
+/// The query limit for a best `t` so far: `best` widened by 2⁻¹⁶ relative and by 10⁻³⁰, so a
 /// node holding a hit at `t ≤ best` is never cut by rounding (the slab test's three roundings,
 /// `t`'s own rounding to f32). Infinity and NaN stay.
 #[inline(always)]
