@@ -76,12 +76,13 @@ fn stage_elision_holds_for_many_spheres() {
     let p = Pipeline::for_scene(&plain);
     assert_eq!(p.depths.len(), 1);
     assert!(!p.runs(Reflect) && !p.runs(Shadow), "{p}");
-    // Up to 16 spheres are tested directly (scene A's path).
-    let few = many_spheres(16);
+    // Up to SPHERE_BVH_MIN spheres are tested directly (scene A's path).
+    let few = many_spheres(wavefront::world::SPHERE_BVH_MIN);
     assert!(World::load(&few).unwrap().sphere_bvh().is_none());
     let p = Pipeline::for_scene(&few);
     assert!(
-        p.geometry.starts_with("16 spheres, 1 planes (brute force)"),
+        p.geometry
+            .starts_with("128 spheres, 1 planes (brute force)"),
         "{}",
         p.geometry
     );
