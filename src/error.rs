@@ -40,7 +40,7 @@ pub enum SceneError {
     },
     /// Neither a scene file nor a built-in name.
     #[error(
-        "no scene file or built-in scene named {name:?} (built-ins: spheres, sibenik, sibenik-shadows)"
+        "no scene file or built-in scene named {name:?} (built-ins: spheres, sibenik, sibenik-shadows, many-spheres)"
     )]
     UnknownScene {
         /// The name given.

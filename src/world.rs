@@ -17,8 +17,10 @@ use crate::scene::{Material, Normals, OffsetMethod, Robustness, Scene, SphereTes
 
 mod analytic;
 mod cached;
+mod sphere_bvh;
 pub use analytic::SurfaceOut;
 pub use cached::{CacheStatus, Setup};
+pub use sphere_bvh::{SPHERE_BVH_MIN, SphereBvh};
 
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -122,6 +124,12 @@ impl Triangles {
 pub struct World {
     spheres: Vec<Sphere>,
     planes: Vec<Plane>,
+    /// The spheres' BVH, for more than [`SPHERE_BVH_MIN`] of them (fewer are tested directly).
+    sphere_bvh: Option<SphereBvh>,
+    /// Every analytic primitive as the surface kernel reads it, for more than
+    /// [`analytic::SMALL_TABLE`] of them (kept so that each batch does not rebuild it; smaller
+    /// tables are copied to the stack per batch).
+    prim_table: Vec<analytic::PrimEntry>,
     /// `None` when the scene has no mesh (no acceleration structure).
     triangles: Option<Triangles>,
     materials: Vec<Material>,
@@ -144,9 +152,19 @@ impl World {
 
     /// The scene's analytic primitives, materials and lights in `frame`, with `triangles`.
     fn analytic(scene: &Scene, frame: RenderFrame, triangles: Option<Triangles>) -> World {
+        let spheres: Vec<Sphere> = scene.spheres.iter().map(|s| frame.sphere(s)).collect();
+        let planes: Vec<Plane> = scene.planes.iter().map(|p| frame.plane(p)).collect();
+        let sphere_bvh = (spheres.len() > SPHERE_BVH_MIN).then(|| SphereBvh::new(&spheres));
+        let prim_table = if spheres.len() + planes.len() > analytic::SMALL_TABLE {
+            analytic::prim_entries(&spheres, &planes).collect()
+        } else {
+            vec![]
+        };
         World {
-            spheres: scene.spheres.iter().map(|s| frame.sphere(s)).collect(),
-            planes: scene.planes.iter().map(|p| frame.plane(p)).collect(),
+            spheres,
+            planes,
+            sphere_bvh,
+            prim_table,
             triangles,
             materials: scene.materials.clone(),
             lights: scene.lights.iter().map(|l| frame.light(l)).collect(),
@@ -159,6 +177,13 @@ impl World {
     /// without reloading the mesh).
     pub fn with_robustness(mut self, robustness: Robustness) -> World {
         self.robustness = robustness;
+        self
+    }
+
+    /// The same world with every sphere tested directly, one by one, however many there are
+    /// (no [`SphereBvh`]): the linear loop the tree's answers are checked against.
+    pub fn with_direct_spheres(mut self) -> World {
+        self.sphere_bvh = None;
         self
     }
 
@@ -213,6 +238,11 @@ impl World {
     /// Planes.
     pub fn planes(&self) -> &[Plane] {
         &self.planes
+    }
+
+    /// The spheres' BVH, when there are more than [`SPHERE_BVH_MIN`] of them.
+    pub fn sphere_bvh(&self) -> Option<&SphereBvh> {
+        self.sphere_bvh.as_ref()
     }
 
     /// The merged triangle mesh and its tree, if the scene has meshes.
@@ -273,14 +303,27 @@ impl World {
     pub fn intersect_closest(&self, o: Vec3, d: Vec3, t_max: f32) -> (f32, PrimId) {
         let mut best_t = t_max;
         let mut best = PrimId::NONE;
-        for (i, s) in self.spheres.iter().enumerate() {
-            let hit = match self.robustness.sphere {
-                SphereTest::Stable => sphere::intersect_stable(o, d, s.center, s.radius, best_t),
-                SphereTest::Naive => sphere::intersect_naive(o, d, s.center, s.radius, best_t),
-            };
-            if let Some(t) = hit {
-                best_t = t;
-                best = PrimId(i as u32);
+        match &self.sphere_bvh {
+            // The tree gives the loop's answer (`world::sphere_bvh`) for the stable test.
+            Some(bvh) if self.robustness.sphere == SphereTest::Stable => {
+                let (t, i) = bvh.closest(o, d, t_max);
+                (best_t, best) = (t, PrimId(i));
+            }
+            _ => {
+                for (i, s) in self.spheres.iter().enumerate() {
+                    let hit = match self.robustness.sphere {
+                        SphereTest::Stable => {
+                            sphere::intersect_stable(o, d, s.center, s.radius, best_t)
+                        }
+                        SphereTest::Naive => {
+                            sphere::intersect_naive(o, d, s.center, s.radius, best_t)
+                        }
+                    };
+                    if let Some(t) = hit {
+                        best_t = t;
+                        best = PrimId(i as u32);
+                    }
+                }
             }
         }
         let ns = self.spheres.len() as u32;
@@ -312,7 +355,11 @@ impl World {
             SphereTest::Stable => sphere::intersect_stable(o, d, s.center, s.radius, t_max),
             SphereTest::Naive => sphere::intersect_naive(o, d, s.center, s.radius, t_max),
         };
-        self.spheres.iter().any(|s| sphere_hit(s).is_some())
+        let spheres = match &self.sphere_bvh {
+            Some(bvh) if self.robustness.sphere == SphereTest::Stable => bvh.occluded(o, d, t_max),
+            _ => self.spheres.iter().any(|s| sphere_hit(s).is_some()),
+        };
+        spheres
             || self
                 .planes
                 .iter()
@@ -325,7 +372,7 @@ impl World {
 
     /// [`World::intersect_closest`] for many rays, bit-identical to it row for row: `out_t[i]`,
     /// `out_prim[i]` receive ray `i`'s answer. Spheres and planes go through one SIMD batch
-    /// kernel (`world::analytic`), then the mesh through [`KdAccel::intersect_closest_batch`]
+    /// kernel (`world::analytic`; many spheres through their BVH ray by ray), then the mesh through [`KdAccel::intersect_closest_batch`]
     /// (4-ray packets) with each ray's `t_max` lowered to its analytic hit — the scalar query's
     /// order, and its ties (analytic ids are lower, and triangles must be strictly nearer).
     /// Worlds with the naive sphere test or a non-watertight triangle test go ray by ray.
@@ -358,6 +405,7 @@ impl World {
             tris => {
                 analytic::closest(analytic::Closest {
                     spheres: &self.spheres,
+                    sphere_bvh: self.sphere_bvh.as_ref(),
                     planes: &self.planes,
                     origins,
                     dirs,
@@ -439,6 +487,7 @@ impl World {
             tris => {
                 analytic::occluded(analytic::Occluded {
                     spheres: &self.spheres,
+                    sphere_bvh: self.sphere_bvh.as_ref(),
                     planes: &self.planes,
                     origins,
                     dirs,

@@ -1,3 +1,5 @@
-//! Acceleration structures for ray/mesh queries.
+//! Acceleration structures: the kD tree of ray/mesh queries and the BVH of many analytic
+//! primitives.
 
+pub mod bvh;
 pub mod kdtree;

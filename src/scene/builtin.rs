@@ -1,4 +1,5 @@
-//! The built-in reference scenes of SPEC §3 and §5: `spheres`, `sibenik`, `sibenik-shadows`.
+//! The built-in reference scenes of SPEC §3 and §5: `spheres`, `sibenik`, `sibenik-shadows`; and
+//! `many-spheres`, scene A with 100,000 seeded random spheres (the many-primitives benchmark).
 
 use std::path::{Path, PathBuf};
 
@@ -11,7 +12,7 @@ use super::{
 use crate::error::SceneError;
 
 /// Names accepted by [`builtin`].
-pub const NAMES: [&str; 3] = ["spheres", "sibenik", "sibenik-shadows"];
+pub const NAMES: [&str; 4] = ["spheres", "sibenik", "sibenik-shadows", "many-spheres"];
 
 /// Environment variable that overrides where the Sibenik mesh is looked for.
 pub const SIBENIK_ENV: &str = "WAVEFRONT_SIBENIK";
@@ -28,6 +29,7 @@ pub fn builtin(name: &str) -> Option<Scene> {
         "spheres" => Some(spheres()),
         "sibenik" => Some(sibenik(false)),
         "sibenik-shadows" => Some(sibenik(true)),
+        "many-spheres" => Some(many_spheres(MANY_SPHERES)),
         _ => None,
     }
 }
@@ -131,6 +133,38 @@ pub fn spheres() -> Scene {
         }],
         meshes: vec![],
     }
+}
+
+/// Spheres in the built-in `many-spheres`.
+pub const MANY_SPHERES: usize = 100_000;
+
+/// Scene A's camera, light, materials and mirror floor at 256 × 256 with `n` seeded random
+/// spheres instead of its three (the built-in `many-spheres` has [`MANY_SPHERES`]): centres
+/// uniform in `x ∈ [−20, 20)`, `y ∈ [−1.75, 10)`, `z ∈ [−60, −5)`, radii in `[0.05, 0.25)`,
+/// materials red, green and blue in turn by a random pick, all from [`crate::sampling::Rng`]
+/// with seed 26, in f32 values (so a scene file printing them in full reads back the same
+/// scene).
+pub fn many_spheres(n: usize) -> Scene {
+    let mut rng = crate::sampling::Rng(26);
+    let mut scene = spheres();
+    scene.name = "many-spheres".into();
+    scene.image.width = 256;
+    scene.image.height = 256;
+    scene.spheres = (0..n)
+        .map(|_| {
+            let x = rng.range(-20.0, 20.0);
+            let y = rng.range(-1.75, 10.0);
+            let z = rng.range(-60.0, -5.0);
+            let radius = rng.range(0.05, 0.25);
+            let material = 1 + (rng.next_u64() % 3) as u32;
+            Sphere {
+                center: DVec3::new(x as f64, y as f64, z as f64),
+                radius,
+                material,
+            }
+        })
+        .collect();
+    scene
 }
 
 /// Scene B (SPEC §5): the Sibenik cathedral lit from the origin, with or without shadow rays.

@@ -136,18 +136,24 @@ impl Pipeline {
 }
 
 fn describe_geometry(scene: &Scene) -> String {
+    // More than a handful of spheres go through their BVH (`world::sphere_bvh`); the rest, and
+    // planes, are tested one by one.
+    let bvh = scene.spheres.len() > crate::world::SPHERE_BVH_MIN;
     let mut parts = vec![];
-    if !scene.spheres.is_empty() {
+    if !scene.spheres.is_empty() && !bvh {
         parts.push(format!("{} spheres", scene.spheres.len()));
     }
     if !scene.planes.is_empty() {
         parts.push(format!("{} planes", scene.planes.len()));
     }
-    let analytic = if parts.is_empty() {
-        String::new()
-    } else {
-        format!("{} (brute force)", parts.join(", "))
-    };
+    let mut analytic = vec![];
+    if bvh {
+        analytic.push(format!("{} spheres in a BVH", scene.spheres.len()));
+    }
+    if !parts.is_empty() {
+        analytic.push(format!("{} (brute force)", parts.join(", ")));
+    }
+    let analytic = analytic.join("; ");
     let mesh = match scene.meshes.len() {
         0 => "no mesh, no kD tree".to_string(),
         n => {

@@ -16,9 +16,10 @@
 
 use glam::Vec3;
 
-use super::World;
+use super::{SphereBvh, World};
 use crate::frame::{Plane, Sphere};
 use crate::geometry::offset::gamma;
+use crate::geometry::plane;
 use crate::queue::PrimId;
 use crate::queue::lanes::{load1, load3, store3};
 use crate::scene::OffsetMethod;
@@ -157,6 +158,8 @@ fn plane8(r: &Rays8, p: &Plane, best: &[f32; LANES]) -> ([f32; LANES], [bool; LA
 /// gives them for a world of these spheres and planes only.
 pub(crate) struct Closest<'a> {
     pub spheres: &'a [Sphere],
+    /// The spheres' BVH: when given, each ray goes through it (then the planes) on its own.
+    pub sphere_bvh: Option<&'a SphereBvh>,
     pub planes: &'a [Plane],
     pub origins: &'a [Vec3],
     pub dirs: &'a [Vec3],
@@ -202,6 +205,25 @@ impl Kernel for Closest<'_> {
     type Output = ();
     #[inline(always)]
     fn run(self, _level: Level) {
+        if let Some(bvh) = self.sphere_bvh {
+            let ns = self.spheres.len() as u32;
+            for i in 0..self.origins.len() {
+                let (o, d) = (self.origins[i], self.dirs[i]);
+                let (mut best, mut prim) = bvh.closest(o, d, self.t_max[i]);
+                for (k, p) in self.planes.iter().enumerate() {
+                    if let Some(t) = plane::intersect(o, d, p.point, p.normal, best) {
+                        (best, prim) = (t, ns + k as u32);
+                    }
+                }
+                self.out_t[i] = if prim == PrimId::NONE.0 {
+                    f32::INFINITY
+                } else {
+                    best
+                };
+                self.out_prim[i] = PrimId(prim);
+            }
+            return;
+        }
         let n = self.origins.len();
         let mut start = 0;
         while start < n {
@@ -225,6 +247,8 @@ impl Kernel for Closest<'_> {
 /// [`super::World::intersect_occluded`] gives it for a world of these spheres and planes only.
 pub(crate) struct Occluded<'a> {
     pub spheres: &'a [Sphere],
+    /// The spheres' BVH: when given, each ray goes through it (then the planes) on its own.
+    pub sphere_bvh: Option<&'a SphereBvh>,
     pub planes: &'a [Plane],
     pub origins: &'a [Vec3],
     pub dirs: &'a [Vec3],
@@ -236,6 +260,17 @@ impl Kernel for Occluded<'_> {
     type Output = ();
     #[inline(always)]
     fn run(self, _level: Level) {
+        if let Some(bvh) = self.sphere_bvh {
+            for i in 0..self.origins.len() {
+                let (o, d, t_max) = (self.origins[i], self.dirs[i], self.t_max[i]);
+                self.out[i] = bvh.occluded(o, d, t_max)
+                    || self
+                        .planes
+                        .iter()
+                        .any(|p| plane::intersect(o, d, p.point, p.normal, t_max).is_some());
+            }
+            return;
+        }
         let n = self.origins.len();
         let mut start = 0;
         while start < n {
@@ -293,7 +328,7 @@ pub struct SurfaceOut<'a> {
 /// One analytic primitive as the surface kernel reads it: a sphere (`centre`, `radius`) or a
 /// plane (`point` in `centre`, `normal`).
 #[derive(Clone, Copy, Debug, Default)]
-struct PrimEntry {
+pub(super) struct PrimEntry {
     sphere: bool,
     centre: [f32; 3],
     radius: f32,
@@ -433,16 +468,23 @@ impl Kernel for Surfaces<'_, '_> {
     }
 }
 
-/// The world's spheres, then its planes, as the surface kernel reads them (primitive id order).
-fn prim_entries(world: &World) -> impl Iterator<Item = PrimEntry> + '_ {
-    let spheres = world.spheres.iter().map(|s| PrimEntry {
+/// Analytic primitives up to this many are copied into a table on the stack per surface batch;
+/// worlds with more keep theirs ([`World::prim_table`](super::World)).
+pub(super) const SMALL_TABLE: usize = 16;
+
+/// Spheres, then planes, as the surface kernel reads them (primitive id order).
+pub(super) fn prim_entries<'a>(
+    spheres: &'a [Sphere],
+    planes: &'a [Plane],
+) -> impl Iterator<Item = PrimEntry> + 'a {
+    let spheres = spheres.iter().map(|s| PrimEntry {
         sphere: true,
         centre: s.center.to_array(),
         radius: s.radius,
         normal: [0.0; 3],
         material: s.material,
     });
-    let planes = world.planes.iter().map(|p| PrimEntry {
+    let planes = planes.iter().map(|p| PrimEntry {
         sphere: false,
         centre: p.point.to_array(),
         radius: 0.0,
@@ -479,17 +521,17 @@ impl World {
             }
             return;
         }
-        let mut prims = [PrimEntry::default(); 16];
-        let table: Vec<PrimEntry>;
-        let entries = prim_entries(self);
+        let mut prims = [PrimEntry::default(); SMALL_TABLE];
         let prims: &[PrimEntry] = if analytic <= prims.len() {
-            for (slot, e) in prims.iter_mut().zip(entries) {
+            for (slot, e) in prims
+                .iter_mut()
+                .zip(prim_entries(&self.spheres, &self.planes))
+            {
                 *slot = e;
             }
             &prims[..analytic]
         } else {
-            table = entries.collect();
-            &table
+            &self.prim_table
         };
         let triangles = self.triangles.is_some();
         let SurfaceOut {
@@ -655,6 +697,7 @@ mod tests {
                 level,
                 Closest {
                     spheres: world.spheres(),
+                    sphere_bvh: None,
                     planes: world.planes(),
                     origins: o,
                     dirs: d,
@@ -668,6 +711,7 @@ mod tests {
                 level,
                 Occluded {
                     spheres: world.spheres(),
+                    sphere_bvh: None,
                     planes: world.planes(),
                     origins: o,
                     dirs: d,
@@ -696,9 +740,36 @@ mod tests {
     /// scalar ones, row for row.
     #[test]
     fn a_mixed_world_batches_like_the_scalar_queries() {
+        let world = mixed_world(&spheres());
+        let (o, d, t) = rays(20_011);
+        let mut out_t = vec![0.0; o.len()];
+        let mut out_prim = vec![PrimId(7); o.len()];
+        world.intersect_closest_batch(&o, &d, &t, &mut out_t, &mut out_prim);
+        let mut occ = vec![false; o.len()];
+        world.intersect_occluded_batch(&o, &d, &t, &mut occ);
+        let mut triangles = 0;
+        for i in 0..o.len() {
+            let (st, sp) = world.intersect_closest(o[i], d[i], t[i]);
+            assert_eq!(
+                (out_t[i].to_bits(), out_prim[i]),
+                (st.to_bits(), sp),
+                "ray {i}"
+            );
+            assert_eq!(
+                occ[i],
+                world.intersect_occluded(o[i], d[i], t[i]),
+                "ray {i}"
+            );
+            triangles += usize::from(sp.is_hit() && sp.0 >= 4);
+        }
+        assert!(triangles > 1000, "the mesh is hit ({triangles} rays)");
+    }
+
+    /// `scene` plus a soup of 300 triangles around scene A's spheres, a triangle coinciding with
+    /// the floor (ties) and one through the green sphere.
+    fn mixed_world(scene: &crate::scene::Scene) -> World {
         use crate::accel::kdtree::BuildMethod;
         use crate::mesh::TriangleMesh;
-        let scene = spheres();
         let mut rng = Rng(5);
         let mut vertices = vec![];
         let mut indices = vec![];
@@ -722,33 +793,155 @@ mod tests {
         vertices.extend([[-20.0, -2.0, 5.0], [20.0, -2.0, 5.0], [0.0, -2.0, -40.0]]);
         vertices.extend([[-2.0, 0.0, -5.0], [2.0, 0.0, -5.0], [0.0, 2.0, -5.0]]);
         indices.extend([[b, b + 1, b + 2], [b + 3, b + 4, b + 5]]);
-        let world = World::with_mesh(
-            &scene,
+        World::with_mesh(
+            scene,
             &TriangleMesh::new(vertices, indices),
             BuildMethod::Sah,
-        );
-        let (o, d, t) = rays(20_011);
-        let mut out_t = vec![0.0; o.len()];
-        let mut out_prim = vec![PrimId(7); o.len()];
-        world.intersect_closest_batch(&o, &d, &t, &mut out_t, &mut out_prim);
-        let mut occ = vec![false; o.len()];
-        world.intersect_occluded_batch(&o, &d, &t, &mut occ);
-        let mut triangles = 0;
-        for i in 0..o.len() {
-            let (st, sp) = world.intersect_closest(o[i], d[i], t[i]);
-            assert_eq!(
-                (out_t[i].to_bits(), out_prim[i]),
-                (st.to_bits(), sp),
-                "ray {i}"
+        )
+    }
+
+    /// Many spheres (through their BVH) over the floor, alone and with a mesh: the batch
+    /// kernels at every level and the scalar queries give the answers of the direct loop over
+    /// every sphere ([`World::with_direct_spheres`]), bit for bit, and the surfaces (through the
+    /// world's primitive table) are the scalar ones.
+    #[test]
+    fn many_spheres_batch_like_the_direct_loop_at_every_level() {
+        let scene = crate::scene::builtin::many_spheres(3000);
+        let (mut o, mut d, mut t) = rays(20_011);
+        // And rays into the cloud: from the eye and from points on the spheres, toward other
+        // spheres (near their silhouettes too), as camera, reflection and shadow rays go.
+        let world = World::load(&scene).unwrap();
+        let mut rng = Rng(8);
+        let s = world.spheres();
+        for i in 0..20_000 {
+            let a = &s[(rng.next_u64() % 3000) as usize];
+            let b = &s[(rng.next_u64() % 3000) as usize];
+            let dir = Vec3::new(
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
+                rng.range(-1.0, 1.0),
             );
-            assert_eq!(
-                occ[i],
-                world.intersect_occluded(o[i], d[i], t[i]),
-                "ray {i}"
-            );
-            triangles += usize::from(sp.is_hit() && sp.0 >= 4);
+            let from = if i % 2 == 0 {
+                Vec3::ZERO
+            } else {
+                a.center + a.radius * dir.normalize_or(Vec3::Y)
+            };
+            let to = b.center + b.radius * rng.range(0.0, 1.1) * dir.normalize_or(Vec3::X);
+            o.push(from);
+            d.push(to - from);
+            t.push(if i % 3 == 0 { 1.0 } else { f32::INFINITY });
         }
-        assert!(triangles > 1000, "the mesh is hit ({triangles} rays)");
+        for mesh in [false, true] {
+            let load = || {
+                if mesh {
+                    mixed_world(&scene)
+                } else {
+                    World::load(&scene).unwrap()
+                }
+            };
+            let world = load();
+            assert!(world.sphere_bvh().is_some() && world.prim_table.len() == 3001);
+            let direct = load().with_direct_spheres();
+            let mut kinds = [0; 3];
+            for i in 0..o.len() {
+                let (dt, dp) = direct.intersect_closest(o[i], d[i], t[i]);
+                let (st, sp) = world.intersect_closest(o[i], d[i], t[i]);
+                assert_eq!(
+                    (st.to_bits(), sp),
+                    (dt.to_bits(), dp),
+                    "mesh {mesh} ray {i}"
+                );
+                let occ = direct.intersect_occluded(o[i], d[i], t[i]);
+                assert_eq!(world.intersect_occluded(o[i], d[i], t[i]), occ, "ray {i}");
+                if sp.is_hit() {
+                    // Sphere, plane (id 3000) or triangle.
+                    kinds[usize::from(sp.0 >= 3000) + usize::from(sp.0 > 3000)] += 1;
+                }
+            }
+            assert!(kinds[0] > 1000 && kinds[1] > 100, "{kinds:?}");
+            assert!(!mesh || kinds[2] > 100, "{kinds:?}");
+            for level in Level::supported() {
+                let mut out_t = vec![0.0; o.len()];
+                let mut out_prim = vec![PrimId(7); o.len()];
+                let mut occ = vec![false; o.len()];
+                if mesh {
+                    world.intersect_closest_batch(&o, &d, &t, &mut out_t, &mut out_prim);
+                    world.intersect_occluded_batch(&o, &d, &t, &mut occ);
+                } else {
+                    dispatch(
+                        level,
+                        Closest {
+                            spheres: world.spheres(),
+                            sphere_bvh: world.sphere_bvh(),
+                            planes: world.planes(),
+                            origins: &o,
+                            dirs: &d,
+                            t_max: &t,
+                            out_t: &mut out_t,
+                            out_prim: &mut out_prim,
+                        },
+                    );
+                    dispatch(
+                        level,
+                        Occluded {
+                            spheres: world.spheres(),
+                            sphere_bvh: world.sphere_bvh(),
+                            planes: world.planes(),
+                            origins: &o,
+                            dirs: &d,
+                            t_max: &t,
+                            out: &mut occ,
+                        },
+                    );
+                }
+                for i in 0..o.len() {
+                    let (dt, dp) = direct.intersect_closest(o[i], d[i], t[i]);
+                    assert_eq!(
+                        (out_t[i].to_bits(), out_prim[i]),
+                        (dt.to_bits(), dp),
+                        "{level:?} mesh {mesh} ray {i}"
+                    );
+                    let blocked = direct.intersect_occluded(o[i], d[i], t[i]);
+                    assert_eq!(occ[i], blocked, "{level:?} mesh {mesh} ray {i}");
+                }
+            }
+            // Surfaces of the hits, through the world's table, against the scalar surface.
+            let mut hit_t = vec![0.0; o.len()];
+            let mut prim = vec![PrimId::NONE; o.len()];
+            world.intersect_closest_batch(&o, &d, &t, &mut hit_t, &mut prim);
+            let rows: Vec<usize> = (0..o.len()).filter(|&i| prim[i].is_hit()).collect();
+            let pick = |c: &[Vec3]| rows.iter().map(|&i| c[i]).collect::<Vec<_>>();
+            let (ro, rd) = (pick(&o), pick(&d));
+            let rt: Vec<f32> = rows.iter().map(|&i| hit_t[i]).collect();
+            let rp: Vec<PrimId> = rows.iter().map(|&i| prim[i]).collect();
+            let n = rows.len();
+            let mut cols = [vec![Vec3::NAN; n], vec![Vec3::NAN; n], vec![Vec3::NAN; n]];
+            let mut shading = vec![Vec3::NAN; n];
+            let mut material = vec![9; n];
+            let [point, normal, spawn] = &mut cols;
+            world.surface_batch(
+                &rp,
+                &ro,
+                &rd,
+                &rt,
+                SurfaceOut {
+                    point,
+                    normal,
+                    material: &mut material,
+                    spawn,
+                    shading: &mut shading,
+                },
+            );
+            let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+            for i in 0..n {
+                let s = world.surface(rp[i], ro[i], rd[i], rt[i]);
+                assert_eq!(bits(cols[0][i]), bits(s.point), "row {i}");
+                assert_eq!(bits(cols[1][i]), bits(s.normal), "row {i}");
+                assert_eq!(material[i], s.material, "row {i}");
+                assert_eq!(bits(cols[2][i]), bits(s.spawn), "row {i}");
+                assert_eq!(bits(shading[i]), bits(s.shading), "row {i}");
+            }
+        }
     }
 
     #[test]
@@ -811,7 +1004,7 @@ mod tests {
             dispatch(
                 level,
                 Surfaces {
-                    prims: &prim_entries(&world).collect::<Vec<_>>(),
+                    prims: &prim_entries(world.spheres(), world.planes()).collect::<Vec<_>>(),
                     prim: &prim,
                     origins: &o,
                     dirs: &d,

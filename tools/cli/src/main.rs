@@ -39,7 +39,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Render a scene file or built-in scene (spheres, sibenik, sibenik-shadows) to PNG or PPM.
+    /// Render a scene file or built-in scene (spheres, sibenik, sibenik-shadows, many-spheres) to
+    /// PNG or PPM.
     Render(RenderArgs),
     /// Print the stage pipeline a scene runs, depth by depth, without rendering.
     Plan(SceneArgs),

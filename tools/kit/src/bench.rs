@@ -368,7 +368,8 @@ impl Record {
 pub struct Timing {
     /// Scene name.
     pub scene: String,
-    /// What was timed: `frame` (median of R renders), `load_obj`, `tree` (as loaded).
+    /// What was timed: `frame` (median of R renders), `load_obj`, `tree` (as loaded), `world`
+    /// (setting up a world of many spheres: their BVH).
     pub timing: String,
     /// Worker threads.
     pub threads: usize,
@@ -376,6 +377,10 @@ pub struct Timing {
     pub seconds: f64,
     /// How many runs the figure summarises.
     pub runs: usize,
+    /// `frame` of a scene without a mesh: the rays one frame traces (every `intersect` and
+    /// `shadow` ray, counted by the [`TrafficMeter`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rays: Option<u64>,
 }
 
 impl Timing {
@@ -416,6 +421,9 @@ pub struct Report {
     /// Bytes of queue traffic per ray, per (stage label, depth), over a whole frame (scenes
     /// without a mesh, like [`Report::traffic`]).
     pub bytes_per_ray: BTreeMap<(String, u32), f64>,
+    /// Spheres traced through a BVH and its node count, for worlds with more than
+    /// [`wavefront::world::SPHERE_BVH_MIN`] spheres.
+    pub sphere_bvh: Option<(usize, usize)>,
 }
 
 /// Queue traffic of a frame against the machine's measured memory bandwidth.
@@ -555,11 +563,26 @@ impl fmt::Display for Report {
             writeln!(f)?;
         }
         if let Some(t) = self.timing("frame") {
-            writeln!(
+            write!(
                 f,
                 "frame: {:.2} ms (median of {} renders)",
                 t.seconds * 1e3,
                 t.runs
+            )?;
+            if let Some(rays) = t.rays {
+                write!(
+                    f,
+                    ", {:.2} Mrays/s ({rays} intersect and shadow rays)",
+                    mrays_per_s(rays as usize, t.seconds)
+                )?;
+            }
+            writeln!(f)?;
+        }
+        if let (Some((spheres, nodes)), Some(t)) = (self.sphere_bvh, self.timing("world")) {
+            writeln!(
+                f,
+                "spheres: {spheres} through a BVH of {nodes} nodes, world set up in {:.1} ms",
+                t.seconds * 1e3
             )?;
         }
         if let Some(t) = &self.traffic {
@@ -612,7 +635,9 @@ pub fn run(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
 fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, BenchError> {
     let threads = rayon::current_num_threads();
     let repeat = config.repeat.max(1);
+    let start = Instant::now();
     let (world, setup) = World::load_cached(scene, config.cache.as_ref())?;
+    let world_seconds = start.elapsed().as_secs_f64();
     let mut report = Report {
         scene: scene.name.clone(),
         threads,
@@ -620,6 +645,9 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
         ..Report::default()
     };
     report.notes.extend(setup.warnings.iter().cloned());
+    report.sphere_bvh = world
+        .sphere_bvh()
+        .map(|b| (world.spheres().len(), b.bvh().nodes.len()));
     if setup.cache == wavefront::world::CacheStatus::Hit {
         report
             .notes
@@ -645,6 +673,7 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
     let frame = median_of(repeat, || {
         render_observed(scene, &world, &RenderOptions::default(), ());
     });
+    let mut frame_timing = timing(scene, "frame", threads, frame, repeat);
     if world.triangles().is_none() {
         // Queue traffic counted on one more, untimed, render (the meter watches every stage).
         let mut traffic = TrafficMeter::default();
@@ -658,6 +687,13 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
                 report.bytes_per_ray.insert(key, b as f64 / rays as f64);
             }
         }
+        let traced = traffic
+            .per_stage
+            .iter()
+            .filter_map(|(&(_, stage), &(_, rays))| {
+                matches!(stage, Stage::Intersect | Stage::Shadow).then_some(rays)
+            });
+        frame_timing.rays = Some(traced.sum());
         report.traffic = Some(Traffic {
             samples_per_s: samples / frame,
             bytes_per_sample: bytes,
@@ -665,9 +701,12 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
             machine_gb_per_s: copy_bandwidth(),
         });
     }
-    report
-        .timings
-        .push(timing(scene, "frame", threads, frame, repeat));
+    report.timings.push(frame_timing);
+    if report.sphere_bvh.is_some() {
+        report
+            .timings
+            .push(timing(scene, "world", threads, world_seconds, 1));
+    }
     if world.triangles().is_some() {
         report
             .timings
@@ -686,6 +725,7 @@ fn timing(scene: &Scene, name: &str, threads: usize, seconds: f64, runs: usize) 
         threads,
         seconds,
         runs,
+        rays: None,
     }
 }
 
@@ -732,6 +772,43 @@ mod tests {
         assert_eq!(snapshot.depths.len(), 3);
         assert!(snapshot.depth(1).unwrap().reflect);
         assert!(!snapshot.depth(2).unwrap().reflect);
+    }
+
+    /// The many-spheres scene (at 64 × 48, 2,000 spheres): the frame's ray count is every
+    /// intersect and shadow ray of the frame, which the snapshot (one wave: the whole frame)
+    /// counts stage by stage; the BVH and the world's set-up time are reported.
+    #[test]
+    fn many_spheres_report_the_frame_rays_and_the_bvh() {
+        let mut scene = wavefront::scene::builtin::many_spheres(2000);
+        (scene.image.width, scene.image.height) = (64, 48);
+        let config = BenchConfig {
+            threads: 1,
+            repeat: 1,
+            cache: None,
+        };
+        let report = run(&scene, config).unwrap();
+        let traced: usize = report
+            .stages
+            .iter()
+            .filter(|r| r.stage == "intersect" || r.stage == "shadow")
+            .map(|r| r.rays)
+            .sum();
+        let frame = report.timing("frame").unwrap();
+        assert_eq!(frame.rays, Some(traced as u64));
+        assert!(traced > 64 * 48 * 2, "{traced}");
+        let (spheres, nodes) = report.sphere_bvh.unwrap();
+        // A binary tree with leaves of at most 4 spheres.
+        assert!(spheres == 2000 && nodes >= 2 * (2000 / 4) - 1, "{nodes}");
+        assert!(report.timing("world").is_some());
+        let text = report.to_string();
+        assert!(
+            text.contains("Mrays/s (") && text.contains("through a BVH of"),
+            "{text}"
+        );
+        let json = report.json_lines();
+        let line = json.lines().find(|l| l.contains("\"frame\"")).unwrap();
+        let back: Timing = serde_json::from_str(line).unwrap();
+        assert_eq!(back.rays, Some(traced as u64));
     }
 
     #[test]
