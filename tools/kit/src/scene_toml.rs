@@ -9,7 +9,7 @@
 use std::fmt::Write;
 
 use glam::{DVec3, Vec3};
-use wavefront::scene::{RenderMode, Scene};
+use wavefront::scene::{Falloff, LightKind, RenderMode, Scene};
 
 fn v3(v: Vec3) -> String {
     format!("[{:?}, {:?}, {:?}]", v.x, v.y, v.z)
@@ -59,12 +59,27 @@ pub fn analytic_scene_toml(scene: &Scene) -> Option<String> {
         v3(r.ambient)
     );
     for l in &scene.lights {
-        let _ = writeln!(
-            s,
-            "[[light]]\nposition = {}\nintensity = {}\n",
-            d3(l.position),
-            v3(l.intensity)
-        );
+        let _ = match l.kind {
+            LightKind::Point { position } => writeln!(s, "[[light]]\nposition = {}", d3(position)),
+            LightKind::Directional { direction } => {
+                writeln!(s, "[[light]]\ndirection = {}", d3(direction))
+            }
+            LightKind::Spot {
+                position,
+                direction,
+                cone,
+                penumbra,
+            } => writeln!(
+                s,
+                "[[light]]\nposition = {}\ndirection = {}\ncone = {cone:?}\npenumbra = {penumbra:?}",
+                d3(position),
+                d3(direction)
+            ),
+        };
+        if l.falloff == Falloff::InverseSquare {
+            let _ = writeln!(s, "falloff = \"inverse-square\"");
+        }
+        let _ = writeln!(s, "intensity = {}\n", v3(l.intensity));
     }
     for m in &scene.materials {
         let _ = writeln!(
@@ -118,6 +133,29 @@ mod tests {
     fn scene_a_and_many_spheres_read_back_as_the_same_scene() {
         round_trip(&spheres());
         round_trip(&many_spheres(3000));
+    }
+
+    #[test]
+    fn every_kind_of_light_reads_back() {
+        let mut scene = spheres();
+        let base = scene.lights[0].clone();
+        scene.lights.push(wavefront::scene::Light {
+            kind: LightKind::Directional {
+                direction: DVec3::new(0.5, -1.0, 0.25),
+            },
+            ..base.clone()
+        });
+        scene.lights.push(wavefront::scene::Light {
+            kind: LightKind::Spot {
+                position: DVec3::new(1.0, 5.0, -3.0),
+                direction: DVec3::new(0.0, -1.0, 0.1),
+                cone: 40.0,
+                penumbra: 7.5,
+            },
+            falloff: Falloff::InverseSquare,
+            ..base
+        });
+        round_trip(&scene);
     }
 
     #[test]
