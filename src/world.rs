@@ -101,6 +101,17 @@ impl Triangles {
         (len > 0.0 && len.is_finite()).then(|| n / len)
     }
 
+    /// The merged mesh in the frame centred on it — where `kdtree build` and the tree cache
+    /// build and tree files are checked — and that frame (for `bench`'s tree-check figure).
+    pub fn centred_mesh(&self) -> Result<(RenderFrame, TriangleMesh), MeshError> {
+        let (frame, mesh, _) = centred_mesh(
+            self.world_positions.clone(),
+            &self.mesh.indices,
+            std::path::Path::new("the merged mesh"),
+        )?;
+        Ok((frame, mesh))
+    }
+
     /// Where the tree came from.
     pub fn source(&self) -> &TreeSource {
         &self.source
@@ -607,7 +618,7 @@ fn load_triangles(
     let tree = match &source {
         TreeSource::Sah => KdTree::build(&mesh, BuildMethod::Sah),
         TreeSource::Midpoint => KdTree::build(&mesh, BuildMethod::Midpoint),
-        TreeSource::File(path) => KdTree::load_text_in(path, mesh.len(), frame)?,
+        TreeSource::File(path) => load_tree_file(path, &mut world_positions, &mesh, frame)?,
     };
     let tree = KdAccel::new(tree, &mesh);
     let times = SetupTimes {
@@ -623,6 +634,46 @@ fn load_triangles(
         source,
     };
     Ok((triangles, times))
+}
+
+/// A tree file for the merged mesh (`world_positions`, and `mesh` in `frame`), validated as
+/// `kdtree check` does and moved to `frame`. It is read and checked in the frame centred on the
+/// mesh — where `kdtree build` and the tree cache build, so their trees read back exactly — then
+/// moved with [`KdTree::into_reframed`], as cached trees are: a file tree renders like the cached
+/// one. (Checked in the camera's frame instead, where vertices and planes are rounded apart, a
+/// valid tree can fail by a rounding.)
+fn load_tree_file(
+    path: &std::path::Path,
+    world_positions: &mut Vec<[f64; 3]>,
+    mesh: &TriangleMesh,
+    frame: &RenderFrame,
+) -> Result<KdTree, LoadError> {
+    let positions = std::mem::take(world_positions);
+    let checked = centred_mesh(positions, &mesh.indices, path);
+    let (centred, checked, positions) = checked?;
+    *world_positions = positions;
+    let tree = KdTree::load_text_in(path, mesh.len(), &centred)?;
+    tree.validate_file(&checked, path)?;
+    Ok(tree.into_reframed(&centred, frame))
+}
+
+/// The mesh of `positions` (world coordinates) and `indices` in the frame centred on it, and
+/// that frame; the positions are handed back. `path` names the mesh in errors.
+#[allow(clippy::type_complexity)]
+fn centred_mesh(
+    positions: Vec<[f64; 3]>,
+    indices: &[[u32; 3]],
+    path: &std::path::Path,
+) -> Result<(RenderFrame, TriangleMesh, Vec<[f64; 3]>), MeshError> {
+    let merged = ObjMesh {
+        path: path.to_path_buf(),
+        positions,
+        indices: indices.to_vec(),
+        ..ObjMesh::default()
+    };
+    let centred = RenderFrame::centered_on(&merged);
+    let mesh = merged.to_frame(centred.origin)?;
+    Ok((centred, mesh, merged.positions))
 }
 
 /// Before a mesh is read: it is there ([`crate::scene::builtin::missing_scene_mesh`]) and its

@@ -9,25 +9,76 @@
 //! Every point of every triangle thus lies in the closed box of a leaf listing it, which is what
 //! traversal needs. Degenerate triangles are never hit, so they need not be listed.
 
+use std::path::Path;
+
 use super::overlap::{Aabb, tri_box_overlap, tri_box_overlap_area};
-use super::{KdTree, MAX_DEPTH, exact_root, split_box, tri_verts};
+use super::{KdTree, MAX_DEPTH, TreeError, exact_root, split_box, tri_verts};
 use crate::mesh::TriangleMesh;
 
+/// A problem [`KdTree::validate`] found, and the node (pre-order index) it is at, if any.
+struct Invalid {
+    node: Option<usize>,
+    message: String,
+}
+
+impl Invalid {
+    fn at(node: usize, message: String) -> Invalid {
+        Invalid {
+            node: Some(node),
+            message,
+        }
+    }
+
+    fn whole(message: String) -> Invalid {
+        Invalid {
+            node: None,
+            message,
+        }
+    }
+}
+
 impl KdTree {
-    /// Checks the tree against `mesh`; the error names the first problem found.
+    /// Checks the tree against `mesh`; the error names the first problem found (and, for a tree
+    /// read from a file, the file's line of the node at fault).
     pub fn validate(&self, mesh: &TriangleMesh) -> Result<(), String> {
+        self.validate_nodes(mesh)
+            .map_err(|e| match self.line_of(e.node) {
+                Some(line) => format!("line {line}: {}", e.message),
+                None => e.message,
+            })
+    }
+
+    /// [`KdTree::validate`] for the tree read from the file `path`: the error is
+    /// [`TreeError::Invalid`], naming the file and the line of the node at fault.
+    pub fn validate_file(&self, mesh: &TriangleMesh, path: &Path) -> Result<(), TreeError> {
+        self.validate_nodes(mesh).map_err(|e| TreeError::Invalid {
+            path: path.to_path_buf(),
+            line: self.line_of(e.node),
+            message: e.message,
+        })
+    }
+
+    /// The file line of pre-order node `node`, for trees read from text.
+    fn line_of(&self, node: Option<usize>) -> Option<usize> {
+        node.and_then(|i| self.lines.get(i)).map(|&l| l as usize)
+    }
+
+    fn validate_nodes(&self, mesh: &TriangleMesh) -> Result<(), Invalid> {
         if self.triangle_count != mesh.len() {
-            return Err(format!(
+            return Err(Invalid::whole(format!(
                 "tree built for {} triangles, mesh has {}",
                 self.triangle_count,
                 mesh.len()
-            ));
+            )));
         }
         if self.nodes.is_empty() {
-            return Err("tree has no nodes".to_string());
+            return Err(Invalid::whole("tree has no nodes".to_string()));
         }
         if let Some(&t) = self.tri_indices.iter().find(|&&t| t as usize >= mesh.len()) {
-            return Err(format!("triangle index {t} out of range ({})", mesh.len()));
+            return Err(Invalid::whole(format!(
+                "triangle index {t} out of range ({})",
+                mesh.len()
+            )));
         }
         let root = exact_root(self, mesh);
         let candidates: Vec<u32> = (0..mesh.len() as u32)
@@ -38,11 +89,11 @@ impl KdTree {
         let mut seen = 0usize;
         self.check(mesh, 0, root, candidates, 0, &mut seen)?;
         if seen != self.nodes.len() {
-            return Err(format!(
+            return Err(Invalid::whole(format!(
                 "{} nodes, only {} reachable from the root",
                 self.nodes.len(),
                 seen
-            ));
+            )));
         }
         Ok(())
     }
@@ -55,29 +106,33 @@ impl KdTree {
         candidates: Vec<u32>,
         depth: usize,
         seen: &mut usize,
-    ) -> Result<(), String> {
+    ) -> Result<(), Invalid> {
         if depth > MAX_DEPTH {
-            return Err(format!("node {i} deeper than {MAX_DEPTH}"));
+            return Err(Invalid::at(i, format!("node {i} deeper than {MAX_DEPTH}")));
         }
         let Some(&n) = self.nodes.get(i) else {
-            return Err(format!("node index {i} out of range"));
+            return Err(Invalid::at(i, format!("node index {i} out of range")));
         };
         *seen += 1;
         if n.is_leaf() {
             let start = n.offset() as usize;
             let end = start + n.count() as usize;
             let Some(listed) = self.tri_indices.get(start..end) else {
-                return Err(format!(
-                    "leaf {i}: triangle range {start}..{end} out of range"
+                return Err(Invalid::at(
+                    i,
+                    format!("leaf {i}: triangle range {start}..{end} out of range"),
                 ));
             };
             let mut listed = listed.to_vec();
             listed.sort_unstable();
             for t in candidates {
                 if listed.binary_search(&t).is_err() {
-                    return Err(format!(
-                        "leaf {i} (box {:?}..{:?}) misses triangle {t} which overlaps it",
-                        bx.0, bx.1
+                    return Err(Invalid::at(
+                        i,
+                        format!(
+                            "leaf {i} (box {:?}..{:?}) misses triangle {t} which overlaps it",
+                            bx.0, bx.1
+                        ),
                     ));
                 }
             }
@@ -85,15 +140,19 @@ impl KdTree {
         }
         let (axis, split) = (n.axis(), n.split());
         if !(split >= bx.0[axis] && split <= bx.1[axis]) {
-            return Err(format!(
-                "node {i}: split {split} on axis {axis} outside its box {:?}..{:?}",
-                bx.0, bx.1
+            return Err(Invalid::at(
+                i,
+                format!(
+                    "node {i}: split {split} on axis {axis} outside its box {:?}..{:?}",
+                    bx.0, bx.1
+                ),
             ));
         }
         let right = n.right() as usize;
         if right <= i + 1 || right >= self.nodes.len() {
-            return Err(format!(
-                "node {i}: right child {right} out of order or range"
+            return Err(Invalid::at(
+                i,
+                format!("node {i}: right child {right} out of order or range"),
             ));
         }
         let (lb, rb) = split_box(&bx, axis, split);
@@ -136,8 +195,9 @@ impl KdTree {
         b?;
         // In pre-order the right subtree starts right after the left one.
         if right != i + 1 + seen_l {
-            return Err(format!(
-                "node {i}: right child {right} does not follow its left subtree"
+            return Err(Invalid::at(
+                i,
+                format!("node {i}: right child {right} does not follow its left subtree"),
             ));
         }
         *seen += seen_l + seen_r;
@@ -205,6 +265,39 @@ mod tests {
         let tree = KdTree::read_text(text.as_bytes(), Path::new("v.kd"), 2).expect("read");
         let err = tree.validate(&mesh()).expect_err("triangle 0 missing");
         assert!(err.contains("misses triangle 0"), "{err}");
+    }
+
+    #[test]
+    fn errors_of_a_tree_from_a_file_name_the_line_of_the_node() {
+        // The left child is on line 3, after the right one: node 1 in pre-order, line 3.
+        let text =
+            "inner{ 0 0 0 4 1 1 ; 2 1 0 2 }\nleaf{ 2 0 0 4 1 1 ; 1 }\nleaf{ 0 0 0 2 1 1 ; }\n";
+        let path = Path::new("v.kd");
+        let tree = KdTree::read_text(text.as_bytes(), path, 2).expect("read");
+        let err = tree.validate(&mesh()).expect_err("triangle 0 missing");
+        assert!(
+            err.starts_with("line 3: ") && err.contains("misses triangle 0"),
+            "{err}"
+        );
+        let err = tree
+            .validate_file(&mesh(), path)
+            .expect_err("triangle 0 missing");
+        assert!(
+            err.to_string().starts_with("v.kd:3: invalid tree: "),
+            "{err}"
+        );
+        // A problem of the whole tree names no line.
+        let other = TriangleMesh::new(vec![[0.0; 3]; 3], vec![[0, 1, 2]]);
+        let tree = KdTree::read_text(text.as_bytes(), path, 1).expect_err("index 1 of 1");
+        assert!(tree.to_string().starts_with("v.kd:2:"), "{tree}");
+        let tree =
+            KdTree::read_text("leaf{ 0 0 0 1 1 1 ; 0 }\n".as_bytes(), path, 2).expect("read");
+        let err = tree.validate_file(&other, path).expect_err("count");
+        assert!(
+            err.to_string()
+                .starts_with("v.kd: invalid tree: tree built for 2"),
+            "{err}"
+        );
     }
 
     /// Triangle 0 lies in the plane x = 2 (the split below); triangle 1 is at x = 3..4.

@@ -769,8 +769,7 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
         KdtreeCommand::Check { tree, mesh } => {
             let (m, frame) = load_mesh(&mesh)?;
             let t = KdTree::load_text_in(&tree, m.len(), &frame)?;
-            t.validate(&m)
-                .map_err(|e| anyhow::anyhow!("{}: invalid tree: {e}", tree.display()))?;
+            t.validate_file(&m, &tree)?;
             println!("{}: valid", tree.display());
             println!("{}", t.stats(&m));
             Ok(())
