@@ -81,13 +81,18 @@ impl KdTree {
             )));
         }
         let root = exact_root(self, mesh);
+        // The vertices of every triangle side by side: the descent reads them for every node.
+        let verts: Vec<[[f32; 3]; 3]> =
+            (0..mesh.len() as u32).map(|k| tri_verts(mesh, k)).collect();
         let candidates: Vec<u32> = (0..mesh.len() as u32)
             .filter(|&k| {
-                !mesh.is_degenerate(k as usize) && tri_box_overlap_area(&tri_verts(mesh, k), &root)
+                let v = &verts[k as usize];
+                !mesh.is_degenerate(k as usize)
+                    && (strictly_inside(v, &root) || tri_box_overlap_area(v, &root))
             })
             .collect();
         let mut seen = 0usize;
-        self.check(mesh, 0, root, candidates, 0, &mut seen)?;
+        self.check(&verts, 0, root, candidates, 0, &mut seen)?;
         if seen != self.nodes.len() {
             return Err(Invalid::whole(format!(
                 "{} nodes, only {} reachable from the root",
@@ -100,7 +105,7 @@ impl KdTree {
 
     fn check(
         &self,
-        mesh: &TriangleMesh,
+        verts: &[[[f32; 3]; 3]],
         i: usize,
         bx: Aabb,
         candidates: Vec<u32>,
@@ -123,10 +128,23 @@ impl KdTree {
                     format!("leaf {i}: triangle range {start}..{end} out of range"),
                 ));
             };
-            let mut listed = listed.to_vec();
-            listed.sort_unstable();
+            let mut sorted = Vec::new();
+            let listed = if listed.len() > 16 {
+                sorted.extend_from_slice(listed);
+                sorted.sort_unstable();
+                &sorted[..]
+            } else {
+                listed
+            };
+            let lists = |t: u32| {
+                if listed.len() > 16 {
+                    listed.binary_search(&t).is_ok()
+                } else {
+                    listed.contains(&t)
+                }
+            };
             for t in candidates {
-                if listed.binary_search(&t).is_err() {
+                if !lists(t) {
                     return Err(Invalid::at(
                         i,
                         format!(
@@ -156,10 +174,27 @@ impl KdTree {
             ));
         }
         let (lb, rb) = split_box(&bx, axis, split);
-        let (mut l, mut r) = (Vec::new(), Vec::new());
+        let (mut l, mut r) = (
+            Vec::with_capacity(candidates.len()),
+            Vec::with_capacity(candidates.len()),
+        );
         for t in candidates {
-            let v = tri_verts(mesh, t);
-            let in_plane = v.iter().all(|p| p[axis] == split);
+            let v = verts[t as usize];
+            let lo = v[0][axis].min(v[1][axis]).min(v[2][axis]);
+            let hi = v[0][axis].max(v[1][axis]).max(v[2][axis]);
+            // `t` meets this node's box with positive area, in a set open within its plane. A
+            // triangle not lying in the split plane on one side of it meets that child the same
+            // way (the set is not inside the plane) and not the other (whose open box is beyond
+            // the plane): only triangles crossing the plane need the overlap test.
+            if hi <= split && lo < split {
+                l.push(t);
+                continue;
+            }
+            if lo >= split && hi > split {
+                r.push(t);
+                continue;
+            }
+            let in_plane = lo == split && hi == split;
             if in_plane {
                 // Lying in the split plane: required on one side, the one that lists it.
                 if tri_box_overlap_area(&v, &lb) {
@@ -171,9 +206,20 @@ impl KdTree {
                 }
                 continue;
             }
-            if tri_box_overlap_area(&v, &lb) {
+            // Crossing the plane, inside the open box: it meets both children's open boxes
+            // (at its vertices on either side).
+            if strictly_inside(&v, &bx) {
                 l.push(t);
+                r.push(t);
+                continue;
             }
+            // Crossing the plane: it meets at least one child (the set it meets this node's
+            // box in is open within its plane, which is not the split plane).
+            if !tri_box_overlap_area(&v, &lb) {
+                r.push(t);
+                continue;
+            }
+            l.push(t);
             if tri_box_overlap_area(&v, &rb) {
                 r.push(t);
             }
@@ -182,13 +228,13 @@ impl KdTree {
         let mut seen_r = 0;
         let (a, b) = if l.len() + r.len() > 4096 {
             rayon::join(
-                || self.check(mesh, i + 1, lb, l, depth + 1, &mut seen_l),
-                || self.check(mesh, right, rb, r, depth + 1, &mut seen_r),
+                || self.check(verts, i + 1, lb, l, depth + 1, &mut seen_l),
+                || self.check(verts, right, rb, r, depth + 1, &mut seen_r),
             )
         } else {
             (
-                self.check(mesh, i + 1, lb, l, depth + 1, &mut seen_l),
-                self.check(mesh, right, rb, r, depth + 1, &mut seen_r),
+                self.check(verts, i + 1, lb, l, depth + 1, &mut seen_l),
+                self.check(verts, right, rb, r, depth + 1, &mut seen_r),
             )
         };
         a?;
@@ -205,14 +251,24 @@ impl KdTree {
     }
 }
 
+/// True when every vertex of `v` lies in the open box `bx`: then so does the whole triangle, and
+/// a non-degenerate one meets it with positive area (what [`tri_box_overlap_area`] decides, found
+/// without its 13 axes).
+#[inline]
+fn strictly_inside(v: &[[f32; 3]; 3], bx: &Aabb) -> bool {
+    v.iter()
+        .all(|p| (0..3).all(|k| p[k] > bx.0[k] && p[k] < bx.1[k]))
+}
+
 impl KdTree {
     /// True when some leaf of the subtree at `i` (box `bx`) whose closed box touches triangle
-    /// `t` lists it. Malformed subtrees answer false; `check` reports them.
+    /// `t` lists it. Malformed subtrees answer false; `check` reports them. The descent prunes by
+    /// the triangle's bounds (never a box it touches) and tests the leaves listing it exactly.
     fn lists(&self, i: usize, bx: &Aabb, t: u32, v: &[[f32; 3]; 3], depth: usize) -> bool {
         let Some(&n) = self.nodes.get(i) else {
             return false;
         };
-        if depth > MAX_DEPTH || !tri_box_overlap(v, bx) {
+        if depth > MAX_DEPTH {
             return false;
         }
         if n.is_leaf() {
@@ -221,11 +277,15 @@ impl KdTree {
             return self
                 .tri_indices
                 .get(start..end)
-                .is_some_and(|l| l.contains(&t));
+                .is_some_and(|l| l.contains(&t))
+                && tri_box_overlap(v, bx);
         }
-        let (lb, rb) = split_box(bx, n.axis(), n.split());
-        self.lists(i + 1, &lb, t, v, depth + 1)
-            || self.lists(n.right() as usize, &rb, t, v, depth + 1)
+        let (axis, split) = (n.axis(), n.split());
+        let lo = v[0][axis].min(v[1][axis]).min(v[2][axis]);
+        let hi = v[0][axis].max(v[1][axis]).max(v[2][axis]);
+        let (lb, rb) = split_box(bx, axis, split);
+        (lo <= split && self.lists(i + 1, &lb, t, v, depth + 1))
+            || (hi >= split && self.lists(n.right() as usize, &rb, t, v, depth + 1))
     }
 }
 
