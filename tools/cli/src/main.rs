@@ -1,5 +1,24 @@
 //! The `wavefront` command line (SPEC §9): argument parsing, I/O and printing only.
 
+/// `println!` that returns an error ("cannot write to stdout": a closed pipe, a full disk) from
+/// the enclosing function instead of panicking (`wavefront plan … | head -0`).
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+            .map_err(|e| anyhow::Error::new(e).context("cannot write to stdout"))?
+    }};
+}
+
+/// `print!` as [`outln!`] is `println!`.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout().lock(), $($arg)*)
+            .map_err(|e| anyhow::Error::new(e).context("cannot write to stdout"))?
+    }};
+}
+
 mod farm;
 mod feedback;
 mod frames;
@@ -371,7 +390,7 @@ fn run_info(args: &InfoArgs) -> Result<()> {
 fn run_plan(args: &SceneArgs) -> Result<()> {
     let scene = scene_from(args)?;
     let i = &scene.image;
-    println!(
+    outln!(
         "scene: {} ({}x{}, {} spp, max_depth {}, shadows {}, {} light(s))",
         scene.name,
         i.width,
@@ -381,7 +400,7 @@ fn run_plan(args: &SceneArgs) -> Result<()> {
         if scene.render.shadows { "on" } else { "off" },
         scene.lights.len()
     );
-    print!("{}", Pipeline::for_scene(&scene));
+    out!("{}", Pipeline::for_scene(&scene));
     Ok(())
 }
 
@@ -426,17 +445,14 @@ fn run_render(args: RenderArgs) -> Result<()> {
         region: jobs.region,
         ..RenderOptions::default()
     };
-    let todo: Vec<&plan::FrameJob> = jobs
-        .frames
-        .iter()
-        .filter(|job| {
-            let skip = args.part.skip_existing && job.output.exists();
-            if skip {
-                println!("skipped {} (exists)", job.output.display());
-            }
-            !skip
-        })
-        .collect();
+    let mut todo: Vec<&plan::FrameJob> = Vec::with_capacity(jobs.frames.len());
+    for job in &jobs.frames {
+        if args.part.skip_existing && job.output.exists() {
+            outln!("skipped {} (exists)", job.output.display());
+        } else {
+            todo.push(job);
+        }
+    }
     if todo.is_empty() {
         return Ok(());
     }
@@ -457,7 +473,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         if args.stats
             && let Some(t) = world.triangles()
         {
-            println!(
+            outln!(
                 "mesh: {} triangles, loaded in {:.1} ms; tree ({:?}) in {:.1} ms; cache: {:?}",
                 t.mesh().len(),
                 setup.load_seconds * 1e3,
@@ -523,7 +539,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             };
             bar.finish();
             if jobs.announce && !args.quiet {
-                println!("wrote {}", job.output.display());
+                outln!("wrote {}", job.output.display());
             }
             let image = &job.scene.image;
             let rays = stats
@@ -542,8 +558,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
             });
             since = Instant::now();
             if args.stats {
-                println!("{stats}");
-                println!(
+                outln!("{stats}");
+                outln!(
                     "scene {} at {} spp on {} thread(s): setup {:.1} ms, wall {:.1} ms",
                     scene.name,
                     scene.image.samples,
@@ -580,12 +596,12 @@ fn run_bench(args: &BenchArgs) -> Result<()> {
     let report = wavefront_kit::bench::run(&scene, config)
         .with_context(|| format!("cannot benchmark scene {}", scene.name))?;
     if args.json {
-        print!("{}", report.json_lines());
+        out!("{}", report.json_lines());
         for n in &report.notes {
             eprintln!("note: {n}");
         }
     } else {
-        print!("{report}");
+        out!("{report}");
     }
     Ok(())
 }
@@ -617,7 +633,7 @@ fn run_report(args: &ReportArgs) -> Result<()> {
     }
     let report = measure(&settings, |line| eprintln!("{line}"))?;
     write(&report, &settings, &args.output)?;
-    println!(
+    outln!(
         "wrote {}/report.md, report.csv, error_vs_time.png",
         args.output.display()
     );
@@ -699,7 +715,7 @@ fn build_tree(
             BuildMethod::Sah => "sah",
             BuildMethod::Midpoint => "midpoint",
         };
-        println!(
+        outln!(
             "{{\"mesh\":{},\"method\":\"{method}\",\"triangles\":{},\"threads\":{},\"load_seconds\":{load:.6},\"build_seconds\":{build:.6},\"nodes\":{},\"leaves\":{},\"empty_leaves\":{},\"references\":{},\"max_depth\":{},\"mean_tris_per_leaf\":{:.3},\"max_tris_per_leaf\":{},\"sah_cost\":{:.4},\"phases\":{{\"input_seconds\":{:.6},\"bounds_seconds\":{:.6},\"top_thread_seconds\":{:.6},\"task_thread_seconds\":{:.6},\"tasks\":{}}},\"cache\":{}}}",
             json_string(&mesh.display().to_string()),
             m.len(),
@@ -722,14 +738,14 @@ fn build_tree(
             ))
         );
     } else {
-        println!(
+        outln!(
             "built {method:?} tree over {} triangles in {:.1} ms (OBJ read in {:.1} ms, {} thread(s))",
             m.len(),
             build * 1e3,
             load * 1e3,
             rayon::current_num_threads()
         );
-        println!("{stats}");
+        outln!("{stats}");
     }
     Ok(())
 }
@@ -770,8 +786,8 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             let (m, frame) = load_mesh(&mesh)?;
             let t = KdTree::load_text_in(&tree, m.len(), &frame)?;
             t.validate_file(&m, &tree)?;
-            println!("{}: valid", tree.display());
-            println!("{}", t.stats(&m));
+            outln!("{}: valid", tree.display());
+            outln!("{}", t.stats(&m));
             Ok(())
         }
     }

@@ -268,3 +268,32 @@ fn memory_a_setting_needs_is_estimated_and_refused_before_allocating() {
     let line = clean_error(&o, &args);
     assert!(line.contains("x.exr") && line.contains("GiB"), "{line}");
 }
+
+/// Item 7 of issue 21: commands that print (`plan`, `bench`, `kdtree check`, `info`, `farm`)
+/// panicked with "failed printing to stdout" when stdout was closed (`wavefront plan … | head -0`).
+/// Their stdout here is a pipe whose reader is already gone, so every write fails (EPIPE).
+#[test]
+fn printing_to_a_closed_stdout_is_an_error_not_a_panic() {
+    let dir = Scratch::new("closed-stdout");
+    for args in [
+        &["plan", "spheres"][..],
+        &["info", "spheres"],
+        &["bench", "spheres", "--repeat", "1", "--samples", "1"],
+        &["--help"],
+    ] {
+        let (reader, writer) = std::io::pipe().expect("pipe");
+        drop(reader);
+        let child = dir
+            .command(args)
+            .stdout(writer)
+            .spawn()
+            .expect("cannot run wavefront");
+        let o = wait_within(child, 60, args);
+        let err = stderr(&o);
+        assert!(!err.contains("panicked"), "{args:?}: {err}");
+        if args != ["--help"] {
+            assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+            assert!(err.contains("cannot write to stdout"), "{args:?}: {err}");
+        }
+    }
+}
