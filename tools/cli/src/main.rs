@@ -22,6 +22,8 @@ macro_rules! out {
 mod farm;
 mod feedback;
 mod frames;
+#[cfg(test)]
+mod fuzz_args;
 mod info;
 mod merge;
 mod plan;
