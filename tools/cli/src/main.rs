@@ -280,8 +280,8 @@ fn check_threads(threads: Option<usize>) -> Result<Option<usize>> {
 /// buffer).
 const WAVE_BYTES_PER_SAMPLE: u64 = 256;
 
-/// Memory an EXR output takes per pixel: the film (12 bytes of linear RGB), the encoder's copy and
-/// its compressed blocks (12 each), and slack.
+/// Memory an EXR output takes per pixel of the rows it holds: the stream's rows (12 bytes of
+/// linear RGB), the encoder's copy and its compressed blocks (12 each), and slack.
 const EXR_BYTES_PER_PIXEL: u64 = 48;
 
 /// The memory this machine has available (`MemAvailable` of `/proc/meminfo`), if known.
@@ -431,14 +431,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
         args.wave_samples as u64 * WAVE_BYTES_PER_SAMPLE,
     )?;
     if exr {
-        let pixels = scene.image.pixel_count();
+        // Streamed: a block row of f32 RGB in the stream and as many in the encoder.
         check_memory(
             &args.output.display().to_string(),
-            &format!(
-                "a {}x{} EXR (written from the whole image in memory)",
-                scene.image.width, scene.image.height
-            ),
-            pixels * EXR_BYTES_PER_PIXEL,
+            &format!("a {}-pixel-wide EXR", scene.image.width),
+            2 * wavefront::output::exr_block_rows() as u64
+                * u64::from(scene.image.width)
+                * EXR_BYTES_PER_PIXEL,
         )?;
     }
     let pool = builder.build().context("cannot start the thread pool")?;
@@ -508,17 +507,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
                     plan::save_part(&film, job, jobs.region, sources)?;
                     stats
                 }
-                // Linear HDR: the film is kept and written whole (EXR is not streamed).
-                None if exr => {
-                    let (film, stats) =
-                        render(&job.scene, &world, options.clone(), |done, total| {
-                            bar.update(done, total)
-                        });
-                    film.save(&job.output, job.scene.image.gamma)?;
-                    stats
-                }
-                // A whole image is encoded row by row as its waves finish: memory follows the
-                // wave size, not the image size.
+                // A whole image is encoded row by row (EXR: block row by block row) as its
+                // waves finish: memory follows the wave size, not the image size.
                 None => {
                     let image = &job.scene.image;
                     let mut out = ImageStream::create(
