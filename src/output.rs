@@ -472,8 +472,9 @@ pub struct ImageStream {
 
 impl ImageStream {
     /// Opens `path` (its `.partial` name) for a `width × height` image in the format its extension
-    /// names (`.png`, `.ppm`, `.exr`), writes the header (EXR: when the rows come) (and `meta`'s text chunks), and starts the writer thread. Fails —
-    /// leaving no file — on an unsupported extension, an unwritable path or invalid metadata.
+    /// names (`.png`, `.ppm`, `.exr`), writes the header and `meta`'s text chunks (EXR: as the
+    /// rows come), and starts the writer thread. Fails — leaving no file — on an unsupported
+    /// extension, an unwritable path or invalid metadata.
     pub fn create(
         path: &Path,
         (width, height): (u32, u32),
