@@ -667,6 +667,8 @@ fn build_tree(
     }
     wavefront::mesh::check_format(mesh)?;
     let start = Instant::now();
+    // The first MiB checked as it streams: a file that is not OBJ fails before it is read whole.
+    wavefront::mesh::check_file(mesh, Some(1 << 20))?;
     let bytes = wavefront::cache::read_parallel(mesh)
         .with_context(|| format!("cannot read mesh file {}", mesh.display()))?;
     let obj = wavefront::obj_fast::read_bytes(mesh, &bytes)?;
