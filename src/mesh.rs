@@ -720,7 +720,7 @@ impl<'p> LineCheck<'p> {
                     }
                     for (k, part) in parts.iter().enumerate() {
                         if part.is_empty() {
-                            return Ok(());
+                            continue;
                         }
                         let (count, what) = [
                             (*nv, "vertices"),
