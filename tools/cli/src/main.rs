@@ -37,7 +37,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::frame::RenderFrame;
-use wavefront::mesh::{ObjMesh, TriangleMesh};
+use wavefront::mesh::ObjMesh;
 use wavefront::output::{ImageFormat, ImageMeta, ImageStream, PartialFile};
 use wavefront::scene::overrides::Overrides;
 use wavefront::scene::set::Setting;
@@ -632,18 +632,6 @@ fn run_report(args: &ReportArgs) -> Result<()> {
     Ok(())
 }
 
-/// Reads an OBJ mesh in f64 and moves it into the frame centred on its bounds, where a tree is
-/// built with the most precision; tree files still hold world coordinates.
-fn load_mesh(path: &Path) -> Result<(TriangleMesh, RenderFrame)> {
-    if wavefront::input::is_absent(path) {
-        return Err(wavefront::scene::builtin::missing_mesh(path).into());
-    }
-    wavefront::mesh::check_format(path)?;
-    let obj = ObjMesh::read(path)?;
-    let frame = RenderFrame::centered_on(&obj);
-    Ok((obj.to_frame(frame.origin)?, frame))
-}
-
 /// A rayon pool of `threads` threads (all cores when `None`); 0 is an error.
 fn thread_pool(threads: Option<usize>) -> Result<rayon::ThreadPool> {
     let mut builder = rayon::ThreadPoolBuilder::new();
@@ -777,9 +765,13 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             pool.install(|| build_tree(&mesh, method, &output, json, &cache))
         }
         KdtreeCommand::Check { tree, mesh } => {
-            let (m, frame) = load_mesh(&mesh)?;
-            let t = KdTree::load_text_in(&tree, m.len(), &frame)?;
-            t.validate_file(&m, &tree)?;
+            if wavefront::input::is_absent(&mesh) {
+                return Err(wavefront::scene::builtin::missing_mesh(&mesh).into());
+            }
+            wavefront::mesh::check_format(&mesh)?;
+            let obj = ObjMesh::read(&mesh)?;
+            // As `render --kdtree FILE` checks it.
+            let (t, m) = wavefront::world::check_tree_file(&tree, &obj.positions, &obj.indices)?;
             outln!("{}: valid", tree.display());
             outln!("{}", t.stats(&m));
             Ok(())
