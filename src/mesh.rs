@@ -303,10 +303,10 @@ impl ObjMesh {
                     && let Err(e) = materials
                 {
                     let message = library_error.take().unwrap_or_else(|| e.to_string());
-                    return Err(mtl_error(&text, path, &message));
+                    return Err(mtl_error(text, path, &message));
                 }
                 if let Some(message) = library_error.take() {
-                    return Err(mtl_error(&text, path, &message));
+                    return Err(mtl_error(text, path, &message));
                 }
                 models
             }
