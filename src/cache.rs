@@ -476,6 +476,7 @@ fn decode_from(read: &Reader, len: u64, key: CacheKey) -> Result<CachedTree, Fai
             tri_indices,
             root: ([r[0], r[1], r[2]], [r[3], r[4], r[5]]),
             triangle_count: indices.len(),
+            lines: Vec::new(),
         },
         indices,
     })

@@ -343,7 +343,17 @@ impl ObjMesh {
     /// (OBJ: tobj's MTL loader, a library that cannot be read is an error naming the OBJ file and
     /// its `mtllib` line; glTF: each primitive's material).
     pub fn read_with(path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
-        check_format(path)?;
+        if check_format(path)? == Format::Obj {
+            // Checked as it streams, so a file that is not OBJ fails at its first bad line
+            // without being read whole (a 2 GB sparse file of NULs fails at once, in bounded
+            // memory).
+            check_file(path, None)?;
+            let text = crate::input::read_text(path).map_err(|source| MeshError::Read {
+                path: path.to_path_buf(),
+                source,
+            })?;
+            return ObjMesh::parse_checked(&unix_line_ends(&text), path, what);
+        }
         let (file, _) = crate::input::open_regular(path).map_err(|source| MeshError::Read {
             path: path.to_path_buf(),
             source,
@@ -363,6 +373,11 @@ impl ObjMesh {
     pub fn parse_with(text: &str, path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
         let text = unix_line_ends(text);
         check_lines(&text, path)?;
+        ObjMesh::parse_checked(&text, path, what)
+    }
+
+    /// [`ObjMesh::parse_with`] of text with Unix line ends whose lines [`check_lines`] passed.
+    fn parse_checked(text: &str, path: &Path, what: ObjRead) -> Result<ObjMesh, MeshError> {
         let options = tobj::LoadOptions {
             triangulate: true,
             single_index: true,
@@ -392,10 +407,10 @@ impl ObjMesh {
                     && let Err(e) = materials
                 {
                     let message = library_error.take().unwrap_or_else(|| e.to_string());
-                    return Err(mtl_error(&text, path, &message));
+                    return Err(mtl_error(text, path, &message));
                 }
                 if let Some(message) = library_error.take() {
-                    return Err(mtl_error(&text, path, &message));
+                    return Err(mtl_error(text, path, &message));
                 }
                 models
             }
@@ -582,35 +597,183 @@ const SKIPPED: &[&str] = &[
 /// the error names the file and line. Continuation lines (a trailing `\`) are joined first, as
 /// tobj joins them.
 pub fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {
-    let (mut nv, mut nvt, mut nvn) = (0usize, 0usize, 0usize);
-    let mut joined = String::new();
-    let mut first_line = 0;
+    let mut check = LineCheck::new(path);
     for (i, raw) in text.lines().enumerate() {
-        let line_no = i + 1;
+        check.line(i + 1, raw)?;
+    }
+    Ok(())
+}
+
+/// Longest line [`check_file`] holds: a longer one is checked by its first `MAX_LINE` bytes and
+/// is an error if they pass (no OBJ line is that long; a binary file's "line" may be gigabytes).
+const MAX_LINE: usize = 16 << 20;
+
+/// [`check_lines`] of the OBJ file `path` as it streams, in bounded memory: lines end at `\n`,
+/// `\r\n` or a lone `\r` (numbered as [`unix_line_ends`] numbers them), and each must be UTF-8.
+/// With `prefix`, only the lines within its first `prefix` bytes are checked (a quick look before
+/// a file is read whole). A PLY or glTF file passes: its own reader checks it.
+pub fn check_file(path: &Path, prefix: Option<u64>) -> Result<(), MeshError> {
+    use std::io::Read as _;
+    if check_format(path)? != Format::Obj {
+        return Ok(());
+    }
+    let read_error = |source| MeshError::Read {
+        path: path.to_path_buf(),
+        source,
+    };
+    let (file, _) = crate::input::open_regular(path).map_err(read_error)?;
+    let mut file = file.take(prefix.unwrap_or(u64::MAX));
+    let mut check = LineCheck::new(path);
+    let mut chunk = vec![0u8; 1 << 20];
+    let mut line: Vec<u8> = Vec::new();
+    let mut line_no = 0usize;
+    let mut after_cr = false;
+    let run = |line: &[u8], line_no: usize, check: &mut LineCheck| {
+        let text = std::str::from_utf8(line).map_err(|_| MeshError::Parse {
+            path: path.to_path_buf(),
+            line: line_no,
+            message: "not UTF-8 text: is this an OBJ file?".to_string(),
+        })?;
+        check.line(line_no, text)
+    };
+    loop {
+        let n = match file.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(read_error(e)),
+        };
+        for &b in &chunk[..n] {
+            if b == b'\n' && after_cr {
+                after_cr = false; // the `\n` of a `\r\n`
+                continue;
+            }
+            after_cr = b == b'\r';
+            if b == b'\n' || b == b'\r' {
+                line_no += 1;
+                run(&line, line_no, &mut check)?;
+                line.clear();
+            } else if line.len() < MAX_LINE {
+                line.push(b);
+            } else {
+                // Too long: its start is checked as a line; if that passes, the length is the
+                // error.
+                let mut end = MAX_LINE;
+                while std::str::from_utf8(&line[..end]).is_err() && end > MAX_LINE - 4 {
+                    end -= 1;
+                }
+                run(&line[..end], line_no + 1, &mut check)?;
+                return Err(MeshError::Parse {
+                    path: path.to_path_buf(),
+                    line: line_no + 1,
+                    message: format!(
+                        "line longer than {}: is this an OBJ file?",
+                        crate::input::size(MAX_LINE as u64)
+                    ),
+                });
+            }
+        }
+    }
+    if prefix.is_none() {
+        if !line.is_empty() {
+            run(&line, line_no + 1, &mut check)?;
+        }
+        return Ok(());
+    }
+    // A prefix may have cut the last line: only its first word is checked, when it is whole
+    // (followed by a space) or longer than any OBJ keyword (a file of NULs has no line end).
+    let text = String::from_utf8_lossy(&line);
+    if let Some(key) = text.split_whitespace().next()
+        && (text.trim_start().len() > key.len() || key.len() > 64)
+        && !known_key(key)
+    {
+        return Err(MeshError::Parse {
+            path: path.to_path_buf(),
+            line: line_no + 1,
+            message: not_obj(key),
+        });
+    }
+    Ok(())
+}
+
+/// True for the first word of a line [`check_lines`] knows (elements, groups, materials,
+/// comments, free-form statements).
+fn known_key(key: &str) -> bool {
+    matches!(
+        key,
+        "v" | "vt" | "vn" | "f" | "l" | "p" | "o" | "g" | "s" | "mtllib" | "usemtl"
+    ) || key.starts_with('#')
+        || SKIPPED.contains(&key)
+}
+
+/// The message of a line starting with `key`, which is not OBJ.
+fn not_obj(key: &str) -> String {
+    format!(
+        "not an OBJ line (it starts with `{}`): is this an OBJ file?",
+        clip(key)
+    )
+}
+
+/// The state of [`check_lines`] between lines (elements defined so far, a continued line), so
+/// that [`check_file`] runs the same check on lines as they stream.
+struct LineCheck<'p> {
+    path: &'p Path,
+    nv: usize,
+    nvt: usize,
+    nvn: usize,
+    joined: String,
+    first_line: usize,
+}
+
+impl<'p> LineCheck<'p> {
+    fn new(path: &'p Path) -> LineCheck<'p> {
+        LineCheck {
+            path,
+            nv: 0,
+            nvt: 0,
+            nvn: 0,
+            joined: String::new(),
+            first_line: 0,
+        }
+    }
+
+    /// Checks line `line_no` (1-based) whose text, without its line end, is `raw`.
+    fn line(&mut self, line_no: usize, raw: &str) -> Result<(), MeshError> {
+        let LineCheck {
+            path,
+            nv,
+            nvt,
+            nvn,
+            joined,
+            first_line,
+        } = self;
+        let path: &Path = path;
         if joined.is_empty() {
-            first_line = line_no;
+            *first_line = line_no;
         }
         if let Some(head) = raw.strip_suffix('\\') {
             joined.push_str(head);
             joined.push(' ');
-            continue;
+            return Ok(());
         }
         let l: Cow<str> = if joined.is_empty() {
             Cow::Borrowed(raw)
         } else {
             joined.push_str(raw);
-            Cow::Owned(std::mem::take(&mut joined))
+            Cow::Owned(std::mem::take(joined))
         };
-        let line = first_line;
+        let line = *first_line;
         let parse = |message: String| MeshError::Parse {
             path: path.to_path_buf(),
             line,
             message,
         };
         let mut words = l.split_whitespace();
-        let Some(key) = words.next() else { continue };
+        let Some(key) = words.next() else {
+            return Ok(());
+        };
         if key.starts_with('#') {
-            continue;
+            return Ok(());
         }
         let numbers = |words: std::str::SplitWhitespace, lo: usize, hi: usize| {
             let mut xs = Vec::with_capacity(hi);
@@ -644,15 +807,15 @@ pub fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {
                         line,
                     });
                 }
-                nv += 1;
+                *nv += 1;
             }
             "vt" => {
                 numbers(words, 1, 3)?;
-                nvt += 1;
+                *nvt += 1;
             }
             "vn" => {
                 numbers(words, 3, 3)?;
-                nvn += 1;
+                *nvn += 1;
             }
             "f" | "l" | "p" => {
                 let mut corners = 0;
@@ -667,9 +830,9 @@ pub fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {
                             continue;
                         }
                         let (count, what) = [
-                            (nv, "vertices"),
-                            (nvt, "texture coordinates"),
-                            (nvn, "normals"),
+                            (*nv, "vertices"),
+                            (*nvt, "texture coordinates"),
+                            (*nvn, "normals"),
                         ][k];
                         let index: i64 = part.parse().map_err(|_| {
                             parse(format!("bad index `{}` in `{key}` line", clip(w)))
@@ -708,15 +871,10 @@ pub fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {
             }
             "o" | "g" | "s" | "mtllib" | "usemtl" => {}
             _ if SKIPPED.contains(&key) => {}
-            _ => {
-                return Err(parse(format!(
-                    "not an OBJ line (it starts with `{}`): is this an OBJ file?",
-                    clip(key)
-                )));
-            }
+            _ => return Err(parse(not_obj(key))),
         }
+        Ok(())
     }
-    Ok(())
 }
 
 /// At most 24 characters of `w`, escaped (words of a binary file quoted in messages).
@@ -737,6 +895,37 @@ mod tests {
         ));
         std::fs::write(&path, text).expect("write temp obj");
         path
+    }
+
+    /// The streaming check gives what the whole-text check gives, line numbers included, for
+    /// every kind of line end and for continued lines.
+    #[test]
+    fn the_streaming_check_agrees_with_the_whole_text_check() {
+        let texts = [
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+            "v 0 0 0\r\nv 1 0 0\r\nv 0 1 0\r\nf 1 2 4\r\n",
+            "v 0 0 0\rv 1 0 0\rv 0 1 0\rf 1 2 3\rbad line\r",
+            "v 0 0 0\r\rv 1 0 \\\n0\nv 0 1 0\nf 1 2 3\nf 1 2",
+            "# c\n\nv 0 0 nan\n",
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3",
+        ];
+        for (k, text) in texts.iter().enumerate() {
+            let path = temp_obj(&format!("stream-{k}"), text);
+            let whole = check_lines(&unix_line_ends(text), &path).map_err(|e| e.to_string());
+            let streamed = check_file(&path, None).map_err(|e| e.to_string());
+            assert_eq!(streamed, whole, "{text:?}");
+            std::fs::remove_file(&path).ok();
+        }
+        // A prefix: the cut last line is not judged unless its first word is whole.
+        let path = temp_obj("prefix", "v 0 0 0\nv 1.25 0 0\n");
+        assert!(check_file(&path, Some(12)).is_ok());
+        let path2 = temp_obj("prefix-bad", "v 0 0 0\nwhat is this\n");
+        let e = check_file(&path2, Some(14))
+            .expect_err("not OBJ")
+            .to_string();
+        assert!(e.contains(":2:") && e.contains("not an OBJ line"), "{e}");
+        std::fs::remove_file(&path).ok();
+        std::fs::remove_file(&path2).ok();
     }
 
     #[test]

@@ -1,4 +1,5 @@
-//! Image files: 8-bit PNG and binary PPM (P6), encoded row by row and written atomically.
+//! Image files: 8-bit PNG and binary PPM (P6) encoded row by row, OpenEXR (linear f32 RGB)
+//! encoded block row by block row, all written atomically.
 //!
 //! Reads: resolved pixels in linear radiance ([`ImageStream`], a [`PixelSink`] the schedule feeds
 //! wave by wave) or finished 8-bit RGB rows ([`write_rgb8`]). Writes: one image file.
@@ -6,7 +7,9 @@
 //! [`ImageStream`] encodes each wave's pixels to 8 bits (`round(255 · clamp(L, 0, 1)^(1/γ))`, SPEC
 //! §2) as the wave arrives and sends every completed row through a bounded channel to a writer
 //! thread, which feeds them to the PNG crate's [`png::StreamWriter`] (or writes P6 rows), so an
-//! image of any size needs memory for a wave and a few rows, never the whole image. Both paths use
+//! image of any size needs memory for a wave and a few rows, never the whole image. An EXR stream
+//! sends rows of f32 RGB instead, which the writer thread hands to the `exr` crate's encoder as it
+//! asks for them, tile row (64 rows) after tile row, so it holds a block row or two. Both paths use
 //! the same encoder and settings, so a streamed render and [`crate::Film::save`] of the same pixels
 //! write the same bytes. PNG text chunks ([`ImageMeta`]) go before the image data.
 //!
@@ -18,6 +21,7 @@
 use std::fs::File;
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::thread::JoinHandle;
 
 use crossbeam_channel::{Receiver, Sender};
@@ -214,18 +218,49 @@ enum Body {
     Png(png::Writer<BufWriter<File>>),
     /// PPM: the P6 header is written; rows are written as they are.
     Ppm(BufWriter<File>),
+    /// EXR: nothing is written yet; rows of f32 RGB (little-endian) are encoded block row by
+    /// block row ([`encode_exr`]) as they arrive.
+    Exr {
+        /// The file.
+        out: BufWriter<File>,
+        /// Image size.
+        size: (u32, u32),
+        /// Layer attributes.
+        meta: ImageMeta,
+    },
+}
+
+/// Bytes of one pixel in an [`ImageStream`]'s rows: 8-bit RGB, or f32 RGB for EXR.
+fn pixel_bytes(exr: bool) -> usize {
+    if exr { 12 } else { 3 }
 }
 
 impl Body {
-    /// Writes the header of a `width × height` image in `format` to `file`.
+    /// Writes the header of a `width × height` image in `format` (`None`: EXR) to `file`.
     fn start(
         file: File,
-        format: ImageFormat,
+        format: Option<ImageFormat>,
         (width, height): (u32, u32),
         meta: &ImageMeta,
         path: &Path,
     ) -> Result<Body, OutputError> {
         let out = BufWriter::new(file);
+        let Some(format) = format else {
+            if let Some((key, _)) = meta.text.iter().find(|(k, v)| {
+                exr::prelude::Text::new_or_none(k).is_none()
+                    || exr::prelude::Text::new_or_none(v).is_none()
+            }) {
+                return Err(io_error(
+                    path,
+                    io::Error::other(format!("attribute {key:?} is not EXR text")),
+                ));
+            }
+            return Ok(Body::Exr {
+                out,
+                size: (width, height),
+                meta: meta.clone(),
+            });
+        };
         match format {
             ImageFormat::Png => {
                 let mut encoder = png::Encoder::new(out, width, height);
@@ -251,12 +286,15 @@ impl Body {
 
     /// Writes the image's rows (`expected` bytes in all, in batches of whole rows), then ends the
     /// file and flushes it.
-    fn finish<B: AsRef<[u8]>>(
+    fn finish<B: AsRef<[u8]>, I: IntoIterator<Item = B>>(
         self,
-        batches: impl IntoIterator<Item = B>,
+        batches: I,
         expected: u64,
         path: &Path,
-    ) -> Result<(), OutputError> {
+    ) -> Result<(), OutputError>
+    where
+        I::IntoIter: Send,
+    {
         match self {
             Body::Png(mut writer) => {
                 let mut stream = writer
@@ -286,6 +324,76 @@ impl Body {
                 }
                 out.flush().map_err(|e| io_error(path, e))
             }
+            Body::Exr { out, size, meta } => {
+                let band = Mutex::new(Band {
+                    batches: batches.into_iter(),
+                    rows: Vec::new(),
+                    first: 0,
+                    row: row_bytes(size.0, true),
+                    short: false,
+                });
+                let pixel = |x: usize, y: usize| {
+                    let mut band = band.lock().unwrap_or_else(|e| e.into_inner());
+                    band.pixel(x, y)
+                };
+                encode_exr(out, size, &meta, pixel, path)?;
+                let band = band.into_inner().unwrap_or_else(|e| e.into_inner());
+                if band.short {
+                    let missing = io::Error::new(
+                        io::ErrorKind::UnexpectedEof,
+                        format!("the rows ended before the {} rows of the image", size.1),
+                    );
+                    return Err(io_error(path, missing));
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// The rows of an EXR stream the encoder is reading: from the first row of the current block
+/// row to the last row received (at most a block row and a batch).
+struct Band<I> {
+    /// Row batches still to come.
+    batches: I,
+    /// Rows `first..` as f32 RGB bytes.
+    rows: Vec<u8>,
+    /// The image row `rows` starts at.
+    first: usize,
+    /// Bytes of one row.
+    row: usize,
+    /// The batches ended before a row asked for (the file is then an error).
+    short: bool,
+}
+
+impl<I: Iterator<Item = B>, B: AsRef<[u8]>> Band<I> {
+    /// Pixel `(x, y)`; rows before `y`'s block row are dropped, rows up to `y` are received.
+    fn pixel(&mut self, x: usize, y: usize) -> (f32, f32, f32) {
+        let block = y / exr_block_rows() * exr_block_rows();
+        if block > self.first {
+            let gone = ((block - self.first) * self.row).min(self.rows.len());
+            self.rows.drain(..gone);
+            self.first += gone / self.row.max(1);
+        }
+        while (self.first + self.rows.len() / self.row.max(1)) <= y && !self.short {
+            match self.batches.next() {
+                Some(b) => self.rows.extend_from_slice(b.as_ref()),
+                None => self.short = true,
+            }
+        }
+        let at = (y.wrapping_sub(self.first)) * self.row + 12 * x;
+        match (y >= self.first)
+            .then(|| self.rows.get(at..at + 12))
+            .flatten()
+        {
+            Some(p) => {
+                let c = |k: usize| f32::from_le_bytes([p[k], p[k + 1], p[k + 2], p[k + 3]]);
+                (c(0), c(4), c(8))
+            }
+            None => {
+                self.short = true;
+                (0.0, 0.0, 0.0)
+            }
         }
     }
 }
@@ -307,9 +415,9 @@ fn encode_error(path: &Path, source: png::EncodingError) -> OutputError {
     }
 }
 
-/// Bytes of one row of 8-bit RGB.
-fn row_bytes(width: u32) -> usize {
-    3 * width as usize
+/// Bytes of one row of 8-bit RGB (of f32 RGB for EXR).
+fn row_bytes(width: u32, exr: bool) -> usize {
+    pixel_bytes(exr) * width as usize
 }
 
 /// Writes 8-bit RGB pixels (row-major, row 0 at the top) to `path` as PNG or binary PPM (by
@@ -324,14 +432,15 @@ pub fn write_rgb8(
     let expected = 3 * u64::from(width) * u64::from(height);
     debug_assert_eq!(rgb.len() as u64, expected, "rgb holds the whole image");
     let (guard, file) = PartialFile::create(path).map_err(|e| io_error(path, e))?;
-    let body = Body::start(file, format, (width, height), meta, path)?;
-    body.finish(rgb.chunks(row_bytes(width).max(1)), expected, path)?;
+    let body = Body::start(file, Some(format), (width, height), meta, path)?;
+    body.finish(rgb.chunks(row_bytes(width, false).max(1)), expected, path)?;
     guard.commit().map_err(|e| io_error(path, e))
 }
 
 /// An image file written while the image renders: a [`PixelSink`] that encodes each wave's
-/// pixels to 8 bits and sends every completed row to a writer thread (PNG through
-/// [`png::StreamWriter`], or PPM), so memory is bounded by the wave, not the image.
+/// pixels to 8 bits (f32 for `.exr`) and sends every completed row to a writer thread (PNG through
+/// [`png::StreamWriter`], PPM, or EXR block row by block row), so memory is bounded by the wave
+/// and a few rows, not the image.
 ///
 /// Pixels the schedule never delivers (outside a rendered pixel range) are black, as in a
 /// [`crate::Film`]. [`ImageStream::finish`] completes the file and renames it into place; dropping
@@ -344,6 +453,8 @@ pub struct ImageStream {
     width: u32,
     /// `1 / gamma`, cached for the per-channel encoding.
     inv_gamma: f32,
+    /// An EXR file: rows are f32 RGB (linear, no gamma), not 8-bit.
+    exr: bool,
     /// Pixels in the image.
     total: u64,
     /// The next pixel expected: every pixel before it is encoded (sent, or in `pending`).
@@ -360,15 +471,21 @@ pub struct ImageStream {
 
 impl ImageStream {
     /// Opens `path` (its `.partial` name) for a `width × height` image in the format its extension
-    /// names, writes the header (and `meta`'s text chunks), and starts the writer thread. Fails —
-    /// leaving no file — on an unsupported extension, an unwritable path or invalid metadata.
+    /// names (`.png`, `.ppm`, `.exr`), writes the header and `meta`'s text chunks (EXR: as the
+    /// rows come), and starts the writer thread. Fails — leaving no file — on an unsupported
+    /// extension, an unwritable path or invalid metadata.
     pub fn create(
         path: &Path,
         (width, height): (u32, u32),
         gamma: f32,
         meta: &ImageMeta,
     ) -> Result<ImageStream, OutputError> {
-        let format = ImageFormat::from_path(path)?;
+        let exr = is_exr(path);
+        let format = if exr {
+            None
+        } else {
+            Some(ImageFormat::from_path(path)?)
+        };
         let (partial, file) = PartialFile::create(path).map_err(|e| io_error(path, e))?;
         let body = Body::start(file, format, (width, height), meta, path)?;
         let total = u64::from(width) * u64::from(height);
@@ -377,12 +494,13 @@ impl ImageStream {
         let target = path.to_path_buf();
         let writer = std::thread::Builder::new()
             .name("image-writer".into())
-            .spawn(move || body.finish(receiver, 3 * total, &target))
+            .spawn(move || body.finish(receiver, pixel_bytes(exr) as u64 * total, &target))
             .map_err(|e| io_error(path, e))?;
         Ok(ImageStream {
             path: path.to_path_buf(),
             width,
             inv_gamma: 1.0 / gamma,
+            exr,
             total,
             next: 0,
             pending: Vec::new(),
@@ -396,7 +514,8 @@ impl ImageStream {
     fn fill_black(&mut self, until: u64) {
         while self.next < until && self.rows.is_some() {
             let n = (until - self.next).min(FILL_PIXELS);
-            self.pending.resize(self.pending.len() + 3 * n as usize, 0);
+            let bytes = pixel_bytes(self.exr) * n as usize;
+            self.pending.resize(self.pending.len() + bytes, 0);
             self.next += n;
             self.send_rows();
         }
@@ -404,7 +523,7 @@ impl ImageStream {
 
     /// Sends the completed rows in `pending` to the writer thread, keeping the partial row.
     fn send_rows(&mut self) {
-        let row = row_bytes(self.width).max(1);
+        let row = row_bytes(self.width, self.exr).max(1);
         let complete = self.pending.len() / row * row;
         if complete == 0 {
             return;
@@ -453,8 +572,19 @@ impl PixelSink for ImageStream {
         // On the calling thread: a wave's pixels take microseconds, and the wave workers keep
         // the cores (waking the pool's threads per wave cost more than it saved).
         let start = self.pending.len();
-        self.pending.resize(start + 3 * pixels.len(), 0);
-        encode_rgb8(pixels, self.inv_gamma, &mut self.pending[start..]);
+        let size = pixel_bytes(self.exr);
+        self.pending.resize(start + size * pixels.len(), 0);
+        let out = &mut self.pending[start..];
+        if self.exr {
+            // Linear radiance as it is (no gamma, no clamp; SPEC §13).
+            for (rgb, p) in out.chunks_exact_mut(size).zip(pixels) {
+                for (o, c) in rgb.chunks_exact_mut(4).zip(p.to_array()) {
+                    o.copy_from_slice(&c.to_le_bytes());
+                }
+            }
+        } else {
+            encode_rgb8(pixels, self.inv_gamma, out);
+        }
         self.next = first + pixels.len() as u64;
         self.send_rows();
     }
@@ -482,7 +612,7 @@ pub fn is_exr(path: &Path) -> bool {
 }
 
 /// Writes `film`'s linear radiance as OpenEXR (f32 RGB, no gamma, no clamp; SPEC §13),
-/// atomically. The whole film is in memory: EXR is not streamed.
+/// atomically, from the whole film in memory ([`ImageStream`] streams the same bytes).
 pub fn write_exr(path: &Path, film: &crate::film::Film) -> Result<(), OutputError> {
     write_exr_with(path, film, &ImageMeta::default())
 }
@@ -494,14 +624,46 @@ pub fn write_exr_with(
     film: &crate::film::Film,
     meta: &ImageMeta,
 ) -> Result<(), OutputError> {
-    use exr::prelude::{
-        AttributeValue, Encoding, Image, Layer, LayerAttributes, SpecificChannels, Text, Vec2,
-        WritableImage,
-    };
     let width = film.width as usize;
-    let pixels = |p: Vec2<usize>| {
-        let c = film.pixels[p.y() * width + p.x()];
+    let pixels = |x: usize, y: usize| {
+        let c = film.pixels[y * width + x];
         (c.x, c.y, c.z)
+    };
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    encode_exr(&mut bytes, (film.width, film.height), meta, pixels, path)?;
+    write_atomically(path, bytes.get_ref()).map_err(|e| io_error(path, e))
+}
+
+/// Rows per EXR block: the height of the tiles of the encoding [`encode_exr`] uses (its blocks
+/// are written tile row after tile row, so a stream holds at most this many rows).
+pub fn exr_block_rows() -> usize {
+    match exr_encoding().blocks {
+        exr::prelude::Blocks::Tiles(size) => size.height(),
+        exr::prelude::Blocks::ScanLines => exr_encoding().compression.scan_lines_per_block(),
+    }
+}
+
+/// The one EXR encoding: RLE in 64 × 64 tiles, increasing-Y order — the same pixels give the same
+/// bytes whatever the thread count (SPEC §13; `FAST_LOSSLESS` leaves the order unspecified).
+fn exr_encoding() -> exr::prelude::Encoding {
+    exr::prelude::Encoding {
+        line_order: exr::prelude::LineOrder::Increasing,
+        ..exr::prelude::Encoding::FAST_LOSSLESS
+    }
+}
+
+/// Encodes a `width × height` EXR of `pixels(x, y)` (linear RGB) to `out`, with `meta`'s text as
+/// layer attributes. The blocks are made one after another in increasing Y (tile rows top to
+/// bottom), each pixel asked for once: [`ImageStream`] feeds `pixels` from rows as they arrive.
+fn encode_exr(
+    out: impl Write + io::Seek,
+    (width, height): (u32, u32),
+    meta: &ImageMeta,
+    pixels: impl Fn(usize, usize) -> (f32, f32, f32) + Sync,
+    path: &Path,
+) -> Result<(), OutputError> {
+    use exr::prelude::{
+        AttributeValue, Image, Layer, LayerAttributes, SpecificChannels, Text, Vec2, WritableImage,
     };
     let mut attributes = LayerAttributes::default();
     for (key, value) in &meta.text {
@@ -513,24 +675,22 @@ pub fn write_exr_with(
         };
         attributes.other.insert(k, AttributeValue::Text(v));
     }
-    // Increasing-Y line order and a fixed compression: the same pixels give the same bytes
-    // whatever the thread count (SPEC §13; `FAST_LOSSLESS` leaves the order unspecified).
-    let encoding = Encoding {
-        line_order: exr::prelude::LineOrder::Increasing,
-        ..Encoding::FAST_LOSSLESS
-    };
     let layer = Layer::new(
-        (width, film.height as usize),
+        (width as usize, height as usize),
         attributes,
-        encoding,
-        SpecificChannels::rgb(pixels),
+        exr_encoding(),
+        SpecificChannels::rgb(|p: Vec2<usize>| pixels(p.x(), p.y())),
     );
-    let mut bytes = std::io::Cursor::new(Vec::new());
+    // Sequential: blocks are extracted in order on this thread (what a stream needs); the
+    // compressed bytes are the same as a parallel write's.
     Image::from_layer(layer)
         .write()
-        .to_buffered(&mut bytes)
-        .map_err(|e| io_error(path, io::Error::other(e)))?;
-    write_atomically(path, bytes.get_ref()).map_err(|e| io_error(path, e))
+        .non_parallel()
+        .to_buffered(out)
+        .map_err(|e| match e {
+            exr::error::Error::Io(e) => io_error(path, e),
+            e => io_error(path, io::Error::other(e)),
+        })
 }
 
 /// An EXR file read back: its size, linear RGB pixels (row-major) and string attributes.

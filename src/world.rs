@@ -103,6 +103,16 @@ impl Triangles {
         (len > 0.0 && len.is_finite()).then(|| n / len)
     }
 
+    /// The merged mesh in the frame centred on it — where `kdtree build` and the tree cache
+    /// build and tree files are checked — and that frame (for `bench`'s tree-check figure).
+    pub fn centred_mesh(&self) -> Result<(RenderFrame, TriangleMesh), MeshError> {
+        centred_mesh(
+            &self.world_positions,
+            &self.mesh.indices,
+            std::path::Path::new("the merged mesh"),
+        )
+    }
+
     /// Where the tree came from.
     pub fn source(&self) -> &TreeSource {
         &self.source
@@ -660,7 +670,7 @@ fn load_triangles(
     let tree = match &source {
         TreeSource::Sah => KdTree::build(&mesh, BuildMethod::Sah),
         TreeSource::Midpoint => KdTree::build(&mesh, BuildMethod::Midpoint),
-        TreeSource::File(path) => KdTree::load_text_in(path, mesh.len(), frame)?,
+        TreeSource::File(path) => load_tree_file(path, &world_positions, &mesh, frame)?,
     };
     let tree = KdAccel::new(tree, &mesh);
     let times = SetupTimes {
@@ -676,6 +686,71 @@ fn load_triangles(
         source,
     };
     Ok((triangles, times))
+}
+
+/// A tree file for the merged mesh (`world_positions`, and `mesh` in `frame`), checked as
+/// `kdtree check` checks it ([`check_tree_file`]), then read into `frame` for tracing.
+fn load_tree_file(
+    path: &std::path::Path,
+    world_positions: &[[f64; 3]],
+    mesh: &TriangleMesh,
+    frame: &RenderFrame,
+) -> Result<KdTree, LoadError> {
+    check_tree_file(path, world_positions, &mesh.indices)?;
+    Ok(KdTree::load_text_in(path, mesh.len(), frame)?)
+}
+
+/// Checks the tree file `path` against the mesh of `positions` (world coordinates) and
+/// `indices` with [`KdTree::validate_file`], and returns the tree and the mesh it was checked
+/// with. A file's numbers are exact in the frame its tree was built in, where the check is exact
+/// too: the frame centred on the mesh (where `kdtree build` and the tree cache build) is tried
+/// first, then the world's own frame (a tree built on the mesh as read). Checked in another frame
+/// — the camera's — vertices and planes are rounded apart, and a valid tree can fail by a
+/// rounding. The error is the centred frame's.
+pub fn check_tree_file(
+    path: &std::path::Path,
+    positions: &[[f64; 3]],
+    indices: &[[u32; 3]],
+) -> Result<(KdTree, TriangleMesh), LoadError> {
+    let merged = ObjMesh {
+        path: path.to_path_buf(),
+        positions: positions.to_vec(),
+        indices: indices.to_vec(),
+        ..ObjMesh::default()
+    };
+    let centred = RenderFrame::centered_on(&merged);
+    let mesh = merged.to_frame(centred.origin)?;
+    let tree = KdTree::load_text_in(path, mesh.len(), &centred)?;
+    let first = match tree.validate_file(&mesh, path) {
+        Ok(()) => return Ok((tree, mesh)),
+        Err(e) => e,
+    };
+    let world = RenderFrame::default();
+    if let Ok(mesh) = merged.to_frame(world.origin) {
+        let tree = KdTree::load_text_in(path, mesh.len(), &world)?;
+        if tree.validate_file(&mesh, path).is_ok() {
+            return Ok((tree, mesh));
+        }
+    }
+    Err(first.into())
+}
+
+/// The mesh of `positions` (world coordinates) and `indices` in the frame centred on it, and
+/// that frame. `path` names the mesh in errors.
+fn centred_mesh(
+    positions: &[[f64; 3]],
+    indices: &[[u32; 3]],
+    path: &std::path::Path,
+) -> Result<(RenderFrame, TriangleMesh), MeshError> {
+    let merged = ObjMesh {
+        path: path.to_path_buf(),
+        positions: positions.to_vec(),
+        indices: indices.to_vec(),
+        ..ObjMesh::default()
+    };
+    let centred = RenderFrame::centered_on(&merged);
+    let mesh = merged.to_frame(centred.origin)?;
+    Ok((centred, mesh))
 }
 
 /// Before a mesh is read: it is there ([`crate::scene::builtin::missing_scene_mesh`]) and its

@@ -15,8 +15,10 @@
 //! ```
 //!
 //! A failing case prints its parser, seed and case number; rerun it with the same seed. The CLI's
-//! argument parsing is not fuzzed here (each case would be a process); `tools/cli/tests/` covers
-//! its hostile arguments.
+//! arguments are fuzzed in-process in the binary's own tests (`tools/cli/src/fuzz_args.rs`:
+//! `cargo test --release -p wavefront-cli --bin wavefront fuzz`, the same variables), through its
+//! clap parser and the checks each command makes before any work; a process per case would be
+//! too slow for 10,000 cases.
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;

@@ -404,15 +404,10 @@ fn a_255_byte_output_name_can_be_written() {
     assert_eq!(dir.files(), vec![name]);
 }
 
-// Case 10: not mended. Checking every `render --kdtree FILE` with `KdTree::validate` (what
-// `kdtree check` runs) would refuse valid trees: the validator and the SAH builder disagree on
-// marginal overlaps (`kdtree build` then `kdtree check` of the 24 × 24 grid of
-// tools/cli/tests/cache.rs: "leaf 38 misses triangle 4 which overlaps it"), and a tree built in
-// one frame fails the check in another (tests/builders.rs's Sibenik tree). Once the builder and
-// the validator agree, `world::load_triangles` validates file trees and this test passes.
+// Case 10: `render --kdtree FILE` checks the tree as `kdtree check` does (in the frame centred
+// on the mesh, where `kdtree build` builds and the file reads back exactly).
 
 #[test]
-#[ignore = "issue 21 case 10: validate() and the SAH builder disagree; see the comment above"]
 fn a_tree_file_for_another_mesh_is_an_error_not_a_wrong_image() {
     let dir = Scratch::new("hostile-tree");
     // A 16 × 16 grid of quads (512 triangles, enough for the tree to have structure), and the

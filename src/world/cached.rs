@@ -21,6 +21,9 @@ use crate::frame::RenderFrame;
 use crate::mesh::{MeshError, ObjMesh, TriangleMesh};
 use crate::scene::{Normals, Scene, TreeSource};
 
+/// Bytes of an OBJ file [`crate::mesh::check_file`] checks before the file is read whole.
+const OBJ_PREFIX: u64 = 1 << 20;
+
 /// What the cache did for one load.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub enum CacheStatus {
@@ -95,6 +98,9 @@ impl World {
         let mut extra = Vec::with_capacity(scene.meshes.len());
         for m in &scene.meshes {
             check_mesh_path(scene, m)?;
+            // A look at the first MiB as it streams before the file is read whole: a file that
+            // is not OBJ from the start (binary, NULs) fails at once in bounded memory.
+            crate::mesh::check_file(&m.path, Some(OBJ_PREFIX))?;
             let bytes = crate::cache::read_parallel(&m.path).map_err(|source| MeshError::Read {
                 path: m.path.clone(),
                 source,

@@ -97,8 +97,9 @@ pub struct TriHit {
 }
 
 /// A kD tree over a triangle mesh (structure only: it holds no vertices). See the module docs
-/// for the layout; trace rays through [`KdAccel`].
-#[derive(Clone, Debug, PartialEq)]
+/// for the layout; trace rays through [`KdAccel`]. Two trees are equal when their nodes, lists,
+/// root boxes and triangle counts are (the file lines of a tree read from text do not count).
+#[derive(Clone, Debug)]
 pub struct KdTree {
     /// Nodes in depth-first pre-order; node 0 is the root.
     pub(crate) nodes: Vec<KdNode>,
@@ -108,6 +109,18 @@ pub struct KdTree {
     pub(crate) root: Aabb,
     /// Number of triangles of the mesh the tree refers to (bound on every index).
     pub(crate) triangle_count: usize,
+    /// For a tree read from text, the 1-based file line of each node (pre-order), so that
+    /// [`KdTree::validate`] names lines; empty for built trees.
+    pub(crate) lines: Vec<u32>,
+}
+
+impl PartialEq for KdTree {
+    fn eq(&self, other: &KdTree) -> bool {
+        self.nodes == other.nodes
+            && self.tri_indices == other.tri_indices
+            && self.root == other.root
+            && self.triangle_count == other.triangle_count
+    }
 }
 
 impl KdTree {
@@ -149,6 +162,7 @@ impl KdTree {
             tri_indices: flat.tris,
             root,
             triangle_count: mesh.len(),
+            lines: Vec::new(),
         }
     }
 

@@ -130,6 +130,25 @@ pub enum TreeError {
         /// The depth limit.
         max: usize,
     },
+    /// The tree does not fit its mesh ([`KdTree::validate_file`]): a leaf misses a triangle
+    /// that overlaps it, a split lies outside its node's box, the triangle count differs.
+    #[error("{}: invalid tree: {message}", place(path, *line))]
+    Invalid {
+        /// File that failed.
+        path: PathBuf,
+        /// 1-based line of the node at fault (none for a problem of the whole tree).
+        line: Option<usize>,
+        /// What is wrong.
+        message: String,
+    },
+}
+
+/// `path:line`, or `path` without a line.
+fn place(path: &Path, line: Option<usize>) -> String {
+    match line {
+        Some(line) => format!("{}:{line}", path.display()),
+        None => path.display().to_string(),
+    }
 }
 
 /// One parsed line.
@@ -314,6 +333,7 @@ impl KdTree {
             tri_indices,
             root,
             triangle_count,
+            lines: order.iter().map(|&old| old as u32 + 1).collect(),
         })
     }
 
@@ -356,7 +376,7 @@ impl KdTree {
     /// [`KdTree::write_text`] for a tree in the render frame `frame`: writes world coordinates
     /// (`x + eye` in f64), which [`KdTree::read_text_in`] with the same frame reads back exactly.
     pub fn write_text_in(&self, w: impl Write, frame: &RenderFrame) -> std::io::Result<()> {
-        let world = |axis: usize, x: f32| WorldCoordinate(frame.world_coordinate(axis, x));
+        let world = |axis: usize, x: f32| WorldCoordinate::new(frame, axis, x);
         let mut w = std::io::BufWriter::new(w);
         let mut stack: Vec<(usize, Aabb)> = vec![(0, self.root)];
         let mut boxes = vec![self.root; self.nodes.len()];
@@ -397,18 +417,47 @@ impl KdTree {
     }
 }
 
-/// A world coordinate printed as the shortest f32 that reads back exactly when it is one (every
-/// coordinate of a tree in the world's own frame), else as the shortest f64.
-struct WorldCoordinate(f64);
+/// A frame coordinate printed in world coordinates so that [`KdTree::read_text_in`] (which parses
+/// f64 and rounds `x − origin` to f32) reads back exactly the same f32: the shortest f32 text
+/// when the world coordinate is an f32 and that text reads back (every coordinate of a tree in
+/// the world's own frame), else the shortest f64 text of the nearest world coordinate that reads
+/// back. (The shortest f32 text alone does not: parsed as f64 it is off by up to half an f32 ulp
+/// of the world coordinate, which a frame origin far from zero turns into a different frame
+/// coordinate — a `kdtree build` tree failed `kdtree check` that way.)
+struct WorldCoordinate(String);
+
+impl WorldCoordinate {
+    fn new(frame: &RenderFrame, axis: usize, x: f32) -> WorldCoordinate {
+        let reads_back = |text: &str| {
+            text.parse::<f64>()
+                .is_ok_and(|w| frame.coordinate(axis, w) == x)
+        };
+        let w = frame.world_coordinate(axis, x);
+        if f64::from(w as f32) == w {
+            let short = format!("{}", w as f32);
+            if reads_back(&short) {
+                return WorldCoordinate(short);
+            }
+        }
+        // `w` itself is rounded (f32 + f64 in f64); the world coordinates that read back as `x`
+        // form an interval around it, so a few neighbours are enough.
+        let (mut up, mut down) = (w, w);
+        for _ in 0..64 {
+            for c in [up, down] {
+                let text = format!("{c}");
+                if reads_back(&text) {
+                    return WorldCoordinate(text);
+                }
+            }
+            (up, down) = (up.next_up(), down.next_down());
+        }
+        WorldCoordinate(format!("{w}"))
+    }
+}
 
 impl std::fmt::Display for WorldCoordinate {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let x = self.0;
-        if f64::from(x as f32) == x {
-            write!(f, "{}", x as f32)
-        } else {
-            write!(f, "{x}")
-        }
+        f.write_str(&self.0)
     }
 }
 
@@ -688,5 +737,38 @@ mod tests {
             back.write_text(&mut again).expect("write");
             assert_eq!(out, again);
         }
+    }
+
+    /// Every f32 in a window around the frame origin's scale, written in a frame whose origin is
+    /// not zero, reads back as the same f32. (The shortest f32 text of `x + origin` does not: a
+    /// `kdtree build` tree of a grid at z = -5 failed `kdtree check` with "leaf 38 misses
+    /// triangle 4" because its split -0.2537532 came back as -0.253753.)
+    #[test]
+    fn coordinates_in_an_off_origin_frame_read_back_exactly() {
+        let frame = RenderFrame::at(glam::DVec3::new(0.0, -3.0, -5.000000000000001));
+        for axis in [1, 2] {
+            let mut m = 1e-6f32;
+            while m < 0.3 {
+                for x in [m, -m] {
+                    let text = WorldCoordinate::new(&frame, axis, x).0;
+                    let w: f64 = text.parse().expect("number");
+                    assert_eq!(
+                        frame.coordinate(axis, w),
+                        x,
+                        "axis {axis}: {x} written as {text}"
+                    );
+                }
+                m = (m * 1.0003).next_up();
+            }
+        }
+        // The old rule's failing case: z = -0.2537532 in the frame at z = -5.
+        let frame = RenderFrame::at(glam::DVec3::new(0.0, 0.0, -5.0));
+        let x = -0.2537532f32;
+        let text = WorldCoordinate::new(&frame, 2, x).0;
+        assert_eq!(
+            frame.coordinate(2, text.parse().expect("number")),
+            x,
+            "{text}"
+        );
     }
 }

@@ -9,75 +9,148 @@
 //! Every point of every triangle thus lies in the closed box of a leaf listing it, which is what
 //! traversal needs. Degenerate triangles are never hit, so they need not be listed.
 
+use std::path::Path;
+
 use super::overlap::{Aabb, tri_box_overlap, tri_box_overlap_area};
-use super::{KdTree, MAX_DEPTH, exact_root, split_box, tri_verts};
+use super::{KdTree, MAX_DEPTH, TreeError, exact_root, split_box, tri_verts};
 use crate::mesh::TriangleMesh;
 
+/// A problem [`KdTree::validate`] found, and the node (pre-order index) it is at, if any.
+struct Invalid {
+    node: Option<usize>,
+    message: String,
+}
+
+impl Invalid {
+    fn at(node: usize, message: String) -> Invalid {
+        Invalid {
+            node: Some(node),
+            message,
+        }
+    }
+
+    fn whole(message: String) -> Invalid {
+        Invalid {
+            node: None,
+            message,
+        }
+    }
+}
+
 impl KdTree {
-    /// Checks the tree against `mesh`; the error names the first problem found.
+    /// Checks the tree against `mesh`; the error names the first problem found (and, for a tree
+    /// read from a file, the file's line of the node at fault).
     pub fn validate(&self, mesh: &TriangleMesh) -> Result<(), String> {
+        self.validate_nodes(mesh)
+            .map_err(|e| match self.line_of(e.node) {
+                Some(line) => format!("line {line}: {}", e.message),
+                None => e.message,
+            })
+    }
+
+    /// [`KdTree::validate`] for the tree read from the file `path`: the error is
+    /// [`TreeError::Invalid`], naming the file and the line of the node at fault.
+    pub fn validate_file(&self, mesh: &TriangleMesh, path: &Path) -> Result<(), TreeError> {
+        self.validate_nodes(mesh).map_err(|e| TreeError::Invalid {
+            path: path.to_path_buf(),
+            line: self.line_of(e.node),
+            message: e.message,
+        })
+    }
+
+    /// The file line of pre-order node `node`, for trees read from text.
+    fn line_of(&self, node: Option<usize>) -> Option<usize> {
+        node.and_then(|i| self.lines.get(i)).map(|&l| l as usize)
+    }
+
+    fn validate_nodes(&self, mesh: &TriangleMesh) -> Result<(), Invalid> {
         if self.triangle_count != mesh.len() {
-            return Err(format!(
+            return Err(Invalid::whole(format!(
                 "tree built for {} triangles, mesh has {}",
                 self.triangle_count,
                 mesh.len()
-            ));
+            )));
         }
         if self.nodes.is_empty() {
-            return Err("tree has no nodes".to_string());
+            return Err(Invalid::whole("tree has no nodes".to_string()));
         }
         if let Some(&t) = self.tri_indices.iter().find(|&&t| t as usize >= mesh.len()) {
-            return Err(format!("triangle index {t} out of range ({})", mesh.len()));
+            return Err(Invalid::whole(format!(
+                "triangle index {t} out of range ({})",
+                mesh.len()
+            )));
         }
         let root = exact_root(self, mesh);
+        // The vertices of every triangle side by side: the descent reads them for every node.
+        let verts: Vec<[[f32; 3]; 3]> =
+            (0..mesh.len() as u32).map(|k| tri_verts(mesh, k)).collect();
         let candidates: Vec<u32> = (0..mesh.len() as u32)
             .filter(|&k| {
-                !mesh.is_degenerate(k as usize) && tri_box_overlap_area(&tri_verts(mesh, k), &root)
+                let v = &verts[k as usize];
+                !mesh.is_degenerate(k as usize)
+                    && (strictly_inside(v, &root) || tri_box_overlap_area(v, &root))
             })
             .collect();
         let mut seen = 0usize;
-        self.check(mesh, 0, root, candidates, 0, &mut seen)?;
+        self.check(&verts, 0, root, candidates, 0, &mut seen)?;
         if seen != self.nodes.len() {
-            return Err(format!(
+            return Err(Invalid::whole(format!(
                 "{} nodes, only {} reachable from the root",
                 self.nodes.len(),
                 seen
-            ));
+            )));
         }
         Ok(())
     }
 
     fn check(
         &self,
-        mesh: &TriangleMesh,
+        verts: &[[[f32; 3]; 3]],
         i: usize,
         bx: Aabb,
         candidates: Vec<u32>,
         depth: usize,
         seen: &mut usize,
-    ) -> Result<(), String> {
+    ) -> Result<(), Invalid> {
         if depth > MAX_DEPTH {
-            return Err(format!("node {i} deeper than {MAX_DEPTH}"));
+            return Err(Invalid::at(i, format!("node {i} deeper than {MAX_DEPTH}")));
         }
         let Some(&n) = self.nodes.get(i) else {
-            return Err(format!("node index {i} out of range"));
+            return Err(Invalid::at(i, format!("node index {i} out of range")));
         };
         *seen += 1;
         if n.is_leaf() {
             let start = n.offset() as usize;
             let end = start + n.count() as usize;
             let Some(listed) = self.tri_indices.get(start..end) else {
-                return Err(format!(
-                    "leaf {i}: triangle range {start}..{end} out of range"
+                return Err(Invalid::at(
+                    i,
+                    format!("leaf {i}: triangle range {start}..{end} out of range"),
                 ));
             };
-            let mut listed = listed.to_vec();
-            listed.sort_unstable();
+            let mut sorted = Vec::new();
+            let listed = if listed.len() > 16 {
+                sorted.extend_from_slice(listed);
+                sorted.sort_unstable();
+                &sorted[..]
+            } else {
+                listed
+            };
+            let lists = |t: u32| {
+                if listed.len() > 16 {
+                    listed.binary_search(&t).is_ok()
+                } else {
+                    listed.contains(&t)
+                }
+            };
             for t in candidates {
-                if listed.binary_search(&t).is_err() {
-                    return Err(format!(
-                        "leaf {i} (box {:?}..{:?}) misses triangle {t} which overlaps it",
-                        bx.0, bx.1
+                if !lists(t) {
+                    return Err(Invalid::at(
+                        i,
+                        format!(
+                            "leaf {i} (box {:?}..{:?}) misses triangle {t} which overlaps it",
+                            bx.0, bx.1
+                        ),
                     ));
                 }
             }
@@ -85,22 +158,43 @@ impl KdTree {
         }
         let (axis, split) = (n.axis(), n.split());
         if !(split >= bx.0[axis] && split <= bx.1[axis]) {
-            return Err(format!(
-                "node {i}: split {split} on axis {axis} outside its box {:?}..{:?}",
-                bx.0, bx.1
+            return Err(Invalid::at(
+                i,
+                format!(
+                    "node {i}: split {split} on axis {axis} outside its box {:?}..{:?}",
+                    bx.0, bx.1
+                ),
             ));
         }
         let right = n.right() as usize;
         if right <= i + 1 || right >= self.nodes.len() {
-            return Err(format!(
-                "node {i}: right child {right} out of order or range"
+            return Err(Invalid::at(
+                i,
+                format!("node {i}: right child {right} out of order or range"),
             ));
         }
         let (lb, rb) = split_box(&bx, axis, split);
-        let (mut l, mut r) = (Vec::new(), Vec::new());
+        let (mut l, mut r) = (
+            Vec::with_capacity(candidates.len()),
+            Vec::with_capacity(candidates.len()),
+        );
         for t in candidates {
-            let v = tri_verts(mesh, t);
-            let in_plane = v.iter().all(|p| p[axis] == split);
+            let v = verts[t as usize];
+            let lo = v[0][axis].min(v[1][axis]).min(v[2][axis]);
+            let hi = v[0][axis].max(v[1][axis]).max(v[2][axis]);
+            // `t` meets this node's box with positive area, in a set open within its plane. A
+            // triangle not lying in the split plane on one side of it meets that child the same
+            // way (the set is not inside the plane) and not the other (whose open box is beyond
+            // the plane): only triangles crossing the plane need the overlap test.
+            if hi <= split && lo < split {
+                l.push(t);
+                continue;
+            }
+            if lo >= split && hi > split {
+                r.push(t);
+                continue;
+            }
+            let in_plane = lo == split && hi == split;
             if in_plane {
                 // Lying in the split plane: required on one side, the one that lists it.
                 if tri_box_overlap_area(&v, &lb) {
@@ -112,9 +206,20 @@ impl KdTree {
                 }
                 continue;
             }
-            if tri_box_overlap_area(&v, &lb) {
+            // Crossing the plane, inside the open box: it meets both children's open boxes
+            // (at its vertices on either side).
+            if strictly_inside(&v, &bx) {
                 l.push(t);
+                r.push(t);
+                continue;
             }
+            // Crossing the plane: it meets at least one child (the set it meets this node's
+            // box in is open within its plane, which is not the split plane).
+            if !tri_box_overlap_area(&v, &lb) {
+                r.push(t);
+                continue;
+            }
+            l.push(t);
             if tri_box_overlap_area(&v, &rb) {
                 r.push(t);
             }
@@ -123,21 +228,22 @@ impl KdTree {
         let mut seen_r = 0;
         let (a, b) = if l.len() + r.len() > 4096 {
             rayon::join(
-                || self.check(mesh, i + 1, lb, l, depth + 1, &mut seen_l),
-                || self.check(mesh, right, rb, r, depth + 1, &mut seen_r),
+                || self.check(verts, i + 1, lb, l, depth + 1, &mut seen_l),
+                || self.check(verts, right, rb, r, depth + 1, &mut seen_r),
             )
         } else {
             (
-                self.check(mesh, i + 1, lb, l, depth + 1, &mut seen_l),
-                self.check(mesh, right, rb, r, depth + 1, &mut seen_r),
+                self.check(verts, i + 1, lb, l, depth + 1, &mut seen_l),
+                self.check(verts, right, rb, r, depth + 1, &mut seen_r),
             )
         };
         a?;
         b?;
         // In pre-order the right subtree starts right after the left one.
         if right != i + 1 + seen_l {
-            return Err(format!(
-                "node {i}: right child {right} does not follow its left subtree"
+            return Err(Invalid::at(
+                i,
+                format!("node {i}: right child {right} does not follow its left subtree"),
             ));
         }
         *seen += seen_l + seen_r;
@@ -145,14 +251,24 @@ impl KdTree {
     }
 }
 
+/// True when every vertex of `v` lies in the open box `bx`: then so does the whole triangle, and
+/// a non-degenerate one meets it with positive area (what [`tri_box_overlap_area`] decides, found
+/// without its 13 axes).
+#[inline]
+fn strictly_inside(v: &[[f32; 3]; 3], bx: &Aabb) -> bool {
+    v.iter()
+        .all(|p| (0..3).all(|k| p[k] > bx.0[k] && p[k] < bx.1[k]))
+}
+
 impl KdTree {
     /// True when some leaf of the subtree at `i` (box `bx`) whose closed box touches triangle
-    /// `t` lists it. Malformed subtrees answer false; `check` reports them.
+    /// `t` lists it. Malformed subtrees answer false; `check` reports them. The descent prunes by
+    /// the triangle's bounds (never a box it touches) and tests the leaves listing it exactly.
     fn lists(&self, i: usize, bx: &Aabb, t: u32, v: &[[f32; 3]; 3], depth: usize) -> bool {
         let Some(&n) = self.nodes.get(i) else {
             return false;
         };
-        if depth > MAX_DEPTH || !tri_box_overlap(v, bx) {
+        if depth > MAX_DEPTH {
             return false;
         }
         if n.is_leaf() {
@@ -161,11 +277,15 @@ impl KdTree {
             return self
                 .tri_indices
                 .get(start..end)
-                .is_some_and(|l| l.contains(&t));
+                .is_some_and(|l| l.contains(&t))
+                && tri_box_overlap(v, bx);
         }
-        let (lb, rb) = split_box(bx, n.axis(), n.split());
-        self.lists(i + 1, &lb, t, v, depth + 1)
-            || self.lists(n.right() as usize, &rb, t, v, depth + 1)
+        let (axis, split) = (n.axis(), n.split());
+        let lo = v[0][axis].min(v[1][axis]).min(v[2][axis]);
+        let hi = v[0][axis].max(v[1][axis]).max(v[2][axis]);
+        let (lb, rb) = split_box(bx, axis, split);
+        (lo <= split && self.lists(i + 1, &lb, t, v, depth + 1))
+            || (hi >= split && self.lists(n.right() as usize, &rb, t, v, depth + 1))
     }
 }
 
@@ -205,6 +325,39 @@ mod tests {
         let tree = KdTree::read_text(text.as_bytes(), Path::new("v.kd"), 2).expect("read");
         let err = tree.validate(&mesh()).expect_err("triangle 0 missing");
         assert!(err.contains("misses triangle 0"), "{err}");
+    }
+
+    #[test]
+    fn errors_of_a_tree_from_a_file_name_the_line_of_the_node() {
+        // The left child is on line 3, after the right one: node 1 in pre-order, line 3.
+        let text =
+            "inner{ 0 0 0 4 1 1 ; 2 1 0 2 }\nleaf{ 2 0 0 4 1 1 ; 1 }\nleaf{ 0 0 0 2 1 1 ; }\n";
+        let path = Path::new("v.kd");
+        let tree = KdTree::read_text(text.as_bytes(), path, 2).expect("read");
+        let err = tree.validate(&mesh()).expect_err("triangle 0 missing");
+        assert!(
+            err.starts_with("line 3: ") && err.contains("misses triangle 0"),
+            "{err}"
+        );
+        let err = tree
+            .validate_file(&mesh(), path)
+            .expect_err("triangle 0 missing");
+        assert!(
+            err.to_string().starts_with("v.kd:3: invalid tree: "),
+            "{err}"
+        );
+        // A problem of the whole tree names no line.
+        let other = TriangleMesh::new(vec![[0.0; 3]; 3], vec![[0, 1, 2]]);
+        let tree = KdTree::read_text(text.as_bytes(), path, 1).expect_err("index 1 of 1");
+        assert!(tree.to_string().starts_with("v.kd:2:"), "{tree}");
+        let tree =
+            KdTree::read_text("leaf{ 0 0 0 1 1 1 ; 0 }\n".as_bytes(), path, 2).expect("read");
+        let err = tree.validate_file(&other, path).expect_err("count");
+        assert!(
+            err.to_string()
+                .starts_with("v.kd: invalid tree: tree built for 2"),
+            "{err}"
+        );
     }
 
     /// Triangle 0 lies in the plane x = 2 (the split below); triangle 1 is at x = 3..4.

@@ -446,11 +446,11 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
     let render_file = plan.job_dir.join("render.sbatch");
     let merge_file = plan.job_dir.join("merge.sbatch");
     if args.print {
-        println!("# ==> {} <==\n{}", render_file.display(), scripts.render);
+        outln!("# ==> {} <==\n{}", render_file.display(), scripts.render);
         if let Some(m) = &scripts.merge {
-            println!("# ==> {} <==\n{m}", merge_file.display());
+            outln!("# ==> {} <==\n{m}", merge_file.display());
         }
-        print!(
+        out!(
             "# ==> submit <==\n{}",
             plan.submit_commands(&args.sbatch, &args.merge_sbatch, scripts.merge.is_some())
         );
@@ -469,7 +469,7 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
         write(&merge_file, m)?;
     }
     if !args.submit {
-        println!(
+        outln!(
             "wrote {}{}; submit with:",
             render_file.display(),
             if scripts.merge.is_some() {
@@ -478,14 +478,14 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
                 String::new()
             }
         );
-        print!(
+        out!(
             "{}",
             plan.submit_commands(&args.sbatch, &args.merge_sbatch, scripts.merge.is_some())
         );
         return Ok(());
     }
     let array = sbatch(&args.sbatch, &[], &render_file)?;
-    println!("render: {array} (job array of {} tasks)", scripts.tasks);
+    outln!("render: {array} (job array of {} tasks)", scripts.tasks);
     if scripts.merge.is_some() {
         let dependency = [
             format!("--dependency=afterok:{array}"),
@@ -493,9 +493,9 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
         ];
         let options = [args.sbatch.as_slice(), &args.merge_sbatch].concat();
         match sbatch(&options, &dependency, &merge_file) {
-            Ok(merge) => println!(
-                "merge: {merge} (after every render task succeeds; cancelled if one fails)"
-            ),
+            Ok(merge) => {
+                outln!("merge: {merge} (after every render task succeeds; cancelled if one fails)")
+            }
             Err(e) => {
                 // Without its merge the array would render for nothing.
                 let cancelled = Command::new("scancel")

@@ -1,8 +1,29 @@
 //! The `wavefront` command line (SPEC §9): argument parsing, I/O and printing only.
 
+/// `println!` that returns an error ("cannot write to stdout": a closed pipe, a full disk) from
+/// the enclosing function instead of panicking (`wavefront plan … | head -0`).
+macro_rules! outln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        writeln!(std::io::stdout().lock(), $($arg)*)
+            .map_err(|e| anyhow::Error::new(e).context("cannot write to stdout"))?
+    }};
+}
+
+/// `print!` as [`outln!`] is `println!`.
+macro_rules! out {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        write!(std::io::stdout().lock(), $($arg)*)
+            .map_err(|e| anyhow::Error::new(e).context("cannot write to stdout"))?
+    }};
+}
+
 mod farm;
 mod feedback;
 mod frames;
+#[cfg(test)]
+mod fuzz_args;
 mod info;
 mod merge;
 mod plan;
@@ -16,7 +37,7 @@ use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
 use wavefront::frame::RenderFrame;
-use wavefront::mesh::{ObjMesh, TriangleMesh};
+use wavefront::mesh::ObjMesh;
 use wavefront::output::{ImageFormat, ImageMeta, ImageStream, PartialFile};
 use wavefront::scene::overrides::Overrides;
 use wavefront::scene::set::Setting;
@@ -260,8 +281,8 @@ fn check_threads(threads: Option<usize>) -> Result<Option<usize>> {
 /// buffer).
 const WAVE_BYTES_PER_SAMPLE: u64 = 256;
 
-/// Memory an EXR output takes per pixel: the film (12 bytes of linear RGB), the encoder's copy and
-/// its compressed blocks (12 each), and slack.
+/// Memory an EXR output takes per pixel of the rows it holds: the stream's rows (12 bytes of
+/// linear RGB), the encoder's copy and its compressed blocks (12 each), and slack.
 const EXR_BYTES_PER_PIXEL: u64 = 48;
 
 /// The memory this machine has available (`MemAvailable` of `/proc/meminfo`), if known.
@@ -372,7 +393,7 @@ fn run_info(args: &InfoArgs) -> Result<()> {
 fn run_plan(args: &SceneArgs) -> Result<()> {
     let scene = scene_from(args)?;
     let i = &scene.image;
-    println!(
+    outln!(
         "scene: {} ({}x{}, {} spp, max_depth {}, shadows {}, {} light(s))",
         scene.name,
         i.width,
@@ -382,7 +403,7 @@ fn run_plan(args: &SceneArgs) -> Result<()> {
         if scene.render.shadows { "on" } else { "off" },
         scene.lights.len()
     );
-    print!("{}", Pipeline::for_scene(&scene));
+    out!("{}", Pipeline::for_scene(&scene));
     Ok(())
 }
 
@@ -411,14 +432,13 @@ fn run_render(args: RenderArgs) -> Result<()> {
         args.wave_samples as u64 * WAVE_BYTES_PER_SAMPLE,
     )?;
     if exr {
-        let pixels = scene.image.pixel_count();
+        // Streamed: a block row of f32 RGB in the stream and as many in the encoder.
         check_memory(
             &args.output.display().to_string(),
-            &format!(
-                "a {}x{} EXR (written from the whole image in memory)",
-                scene.image.width, scene.image.height
-            ),
-            pixels * EXR_BYTES_PER_PIXEL,
+            &format!("a {}-pixel-wide EXR", scene.image.width),
+            2 * wavefront::output::exr_block_rows() as u64
+                * u64::from(scene.image.width)
+                * EXR_BYTES_PER_PIXEL,
         )?;
     }
     let pool = builder.build().context("cannot start the thread pool")?;
@@ -427,17 +447,14 @@ fn run_render(args: RenderArgs) -> Result<()> {
         region: jobs.region,
         ..RenderOptions::default()
     };
-    let todo: Vec<&plan::FrameJob> = jobs
-        .frames
-        .iter()
-        .filter(|job| {
-            let skip = args.part.skip_existing && job.output.exists();
-            if skip {
-                println!("skipped {} (exists)", job.output.display());
-            }
-            !skip
-        })
-        .collect();
+    let mut todo: Vec<&plan::FrameJob> = Vec::with_capacity(jobs.frames.len());
+    for job in &jobs.frames {
+        if args.part.skip_existing && job.output.exists() {
+            outln!("skipped {} (exists)", job.output.display());
+        } else {
+            todo.push(job);
+        }
+    }
     if todo.is_empty() {
         return Ok(());
     }
@@ -458,7 +475,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         if args.stats
             && let Some(t) = world.triangles()
         {
-            println!(
+            outln!(
                 "mesh: {} triangles, loaded in {:.1} ms; tree ({:?}) in {:.1} ms; cache: {:?}",
                 t.mesh().len(),
                 setup.load_seconds * 1e3,
@@ -491,17 +508,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
                     plan::save_part(&film, job, jobs.region, sources)?;
                     stats
                 }
-                // Linear HDR: the film is kept and written whole (EXR is not streamed).
-                None if exr => {
-                    let (film, stats) =
-                        render(&job.scene, &world, options.clone(), |done, total| {
-                            bar.update(done, total)
-                        });
-                    film.save(&job.output, job.scene.image.gamma)?;
-                    stats
-                }
-                // A whole image is encoded row by row as its waves finish: memory follows the
-                // wave size, not the image size.
+                // A whole image is encoded row by row (EXR: block row by block row) as its
+                // waves finish: memory follows the wave size, not the image size.
                 None => {
                     let image = &job.scene.image;
                     let mut out = ImageStream::create(
@@ -524,7 +532,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
             };
             bar.finish();
             if jobs.announce && !args.quiet {
-                println!("wrote {}", job.output.display());
+                outln!("wrote {}", job.output.display());
             }
             let image = &job.scene.image;
             let rays = stats
@@ -543,8 +551,8 @@ fn run_render(args: RenderArgs) -> Result<()> {
             });
             since = Instant::now();
             if args.stats {
-                println!("{stats}");
-                println!(
+                outln!("{stats}");
+                outln!(
                     "scene {} at {} spp on {} thread(s): setup {:.1} ms, wall {:.1} ms",
                     scene.name,
                     scene.image.samples,
@@ -581,12 +589,12 @@ fn run_bench(args: &BenchArgs) -> Result<()> {
     let report = wavefront_kit::bench::run(&scene, config)
         .with_context(|| format!("cannot benchmark scene {}", scene.name))?;
     if args.json {
-        print!("{}", report.json_lines());
+        out!("{}", report.json_lines());
         for n in &report.notes {
             eprintln!("note: {n}");
         }
     } else {
-        print!("{report}");
+        out!("{report}");
     }
     Ok(())
 }
@@ -618,23 +626,11 @@ fn run_report(args: &ReportArgs) -> Result<()> {
     }
     let report = measure(&settings, |line| eprintln!("{line}"))?;
     write(&report, &settings, &args.output)?;
-    println!(
+    outln!(
         "wrote {}/report.md, report.csv, error_vs_time.png",
         args.output.display()
     );
     Ok(())
-}
-
-/// Reads an OBJ mesh in f64 and moves it into the frame centred on its bounds, where a tree is
-/// built with the most precision; tree files still hold world coordinates.
-fn load_mesh(path: &Path) -> Result<(TriangleMesh, RenderFrame)> {
-    if wavefront::input::is_absent(path) {
-        return Err(wavefront::scene::builtin::missing_mesh(path).into());
-    }
-    wavefront::mesh::check_format(path)?;
-    let obj = ObjMesh::read(path)?;
-    let frame = RenderFrame::centered_on(&obj);
-    Ok((obj.to_frame(frame.origin)?, frame))
 }
 
 /// A rayon pool of `threads` threads (all cores when `None`); 0 is an error.
@@ -660,6 +656,8 @@ fn build_tree(
     }
     wavefront::mesh::check_format(mesh)?;
     let start = Instant::now();
+    // The first MiB checked as it streams: a file that is not OBJ fails before it is read whole.
+    wavefront::mesh::check_file(mesh, Some(1 << 20))?;
     let bytes = wavefront::cache::read_parallel(mesh)
         .with_context(|| format!("cannot read mesh file {}", mesh.display()))?;
     let obj = wavefront::obj_fast::read_bytes(mesh, &bytes)?;
@@ -700,7 +698,7 @@ fn build_tree(
             BuildMethod::Sah => "sah",
             BuildMethod::Midpoint => "midpoint",
         };
-        println!(
+        outln!(
             "{{\"mesh\":{},\"method\":\"{method}\",\"triangles\":{},\"threads\":{},\"load_seconds\":{load:.6},\"build_seconds\":{build:.6},\"nodes\":{},\"leaves\":{},\"empty_leaves\":{},\"references\":{},\"max_depth\":{},\"mean_tris_per_leaf\":{:.3},\"max_tris_per_leaf\":{},\"sah_cost\":{:.4},\"phases\":{{\"input_seconds\":{:.6},\"bounds_seconds\":{:.6},\"top_thread_seconds\":{:.6},\"task_thread_seconds\":{:.6},\"tasks\":{}}},\"cache\":{}}}",
             json_string(&mesh.display().to_string()),
             m.len(),
@@ -723,14 +721,14 @@ fn build_tree(
             ))
         );
     } else {
-        println!(
+        outln!(
             "built {method:?} tree over {} triangles in {:.1} ms (mesh read in {:.1} ms, {} thread(s))",
             m.len(),
             build * 1e3,
             load * 1e3,
             rayon::current_num_threads()
         );
-        println!("{stats}");
+        outln!("{stats}");
     }
     Ok(())
 }
@@ -768,12 +766,15 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             pool.install(|| build_tree(&mesh, method, &output, json, &cache))
         }
         KdtreeCommand::Check { tree, mesh } => {
-            let (m, frame) = load_mesh(&mesh)?;
-            let t = KdTree::load_text_in(&tree, m.len(), &frame)?;
-            t.validate(&m)
-                .map_err(|e| anyhow::anyhow!("{}: invalid tree: {e}", tree.display()))?;
-            println!("{}: valid", tree.display());
-            println!("{}", t.stats(&m));
+            if wavefront::input::is_absent(&mesh) {
+                return Err(wavefront::scene::builtin::missing_mesh(&mesh).into());
+            }
+            wavefront::mesh::check_format(&mesh)?;
+            let obj = ObjMesh::read(&mesh)?;
+            // As `render --kdtree FILE` checks it.
+            let (t, m) = wavefront::world::check_tree_file(&tree, &obj.positions, &obj.indices)?;
+            outln!("{}: valid", tree.display());
+            outln!("{}", t.stats(&m));
             Ok(())
         }
     }

@@ -369,7 +369,9 @@ pub struct Timing {
     /// Scene name.
     pub scene: String,
     /// What was timed: `frame` (median of R renders), `load_obj`, `tree` (as loaded), `world`
-    /// (setting up a world of many spheres: their BVH).
+    /// (setting up a world of many spheres: their BVH), `tree_check_build` and `tree_check` (a
+    /// SAH build in the frame centred on the mesh and
+    /// [`wavefront::accel::kdtree::KdTree::validate`] of it: what a tree file's check costs).
     pub timing: String,
     /// Worker threads.
     pub threads: usize,
@@ -605,6 +607,15 @@ impl fmt::Display for Report {
                 t.seconds * 1e3
             )?;
         }
+        if let (Some(b), Some(c)) = (self.timing("tree_check_build"), self.timing("tree_check")) {
+            writeln!(
+                f,
+                "tree check (as for --kdtree FILE): {:.1} ms, {:.2}x the SAH build it checks ({:.1} ms)",
+                c.seconds * 1e3,
+                c.seconds / b.seconds,
+                b.seconds * 1e3
+            )?;
+        }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
         }
@@ -714,6 +725,30 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
         report
             .timings
             .push(timing(scene, "tree", threads, setup.tree_seconds, 1));
+        // What `render --kdtree FILE` adds: the check of a tree against its mesh, timed against
+        // the SAH build of the same tree in the same (centred) frame.
+        let triangles = world.triangles().expect("a mesh");
+        let (_, mesh) = triangles.centred_mesh().map_err(LoadError::from)?;
+        let start = std::time::Instant::now();
+        let tree = wavefront::accel::kdtree::KdTree::build(
+            &mesh,
+            wavefront::accel::kdtree::BuildMethod::Sah,
+        );
+        let build = start.elapsed().as_secs_f64();
+        let start = std::time::Instant::now();
+        let checked = tree.validate(&mesh);
+        let check = start.elapsed().as_secs_f64();
+        if let Err(e) = checked {
+            report
+                .notes
+                .push(format!("the SAH tree fails its check: {e}"));
+        }
+        report
+            .timings
+            .push(timing(scene, "tree_check_build", threads, build, 1));
+        report
+            .timings
+            .push(timing(scene, "tree_check", threads, check, 1));
     }
     Ok(report)
 }
