@@ -190,6 +190,57 @@ pub fn cache_sources(path: &Path, bytes: &[u8]) -> Result<Vec<Vec<u8>>, MeshErro
     Ok(out)
 }
 
+/// The largest distance along an axis from a render frame's origin to a mesh vertex. The f32
+/// watertight triangle test shears the vertices (each coordinate grows to at most 2M for
+/// vertices within ±M), forms edge products (at most 8M²) and sums three of them times a
+/// sheared depth (at most √3·M): about 42·M³, which overflows f32 (3.4e38) near M = 2e12 and
+/// stays eight times below it at M = 1e12. A mesh beyond it is refused ([`ObjMesh::to_frame`])
+/// rather than rendered with missing triangles.
+pub const MAX_FRAME_COORDINATE: f64 = 1e12;
+
+/// World positions `positions` (of the mesh file `path`, for errors) in the render frame whose
+/// origin is `origin`: each `p − origin` in f64, rounded once to f32. A vertex farther than
+/// [`MAX_FRAME_COORDINATE`] from `origin` along an axis is an error naming the file: the f32
+/// triangle test would overflow on it and lose its triangles. The one conversion every load
+/// path (direct, tree cache, tree file) makes.
+pub fn frame_vertices(
+    path: &Path,
+    positions: &[[f64; 3]],
+    origin: DVec3,
+) -> Result<Vec<[f32; 3]>, MeshError> {
+    use rayon::prelude::*;
+    let far = positions
+        .par_iter()
+        .with_min_len(1 << 14)
+        .map(|p| (DVec3::from_array(*p) - origin).abs().max_element())
+        .reduce(
+            || 0.0,
+            |a, d| {
+                if d.is_nan() || a.is_nan() {
+                    f64::NAN
+                } else {
+                    a.max(d)
+                }
+            },
+        );
+    if far.is_nan() || far > MAX_FRAME_COORDINATE {
+        return Err(MeshError::Obj {
+            path: path.to_path_buf(),
+            message: format!(
+                "a vertex is {far:.2e} from the render frame's origin (the eye, or the mesh's \
+                 centre) along an axis; beyond ±{} the f32 triangle test overflows (move the \
+                 mesh or the eye closer)",
+                crate::error::short(MAX_FRAME_COORDINATE)
+            ),
+        });
+    }
+    Ok(positions
+        .par_iter()
+        .with_min_len(1 << 14)
+        .map(|p| (DVec3::from_array(*p) - origin).as_vec3().to_array())
+        .collect())
+}
+
 /// An indexed triangle mesh stored as flat, `Pod` arrays (castable with `bytemuck`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct TriangleMesh {
@@ -468,19 +519,11 @@ impl ObjMesh {
     }
 
     /// The mesh in a render frame whose origin is `origin` (world coordinates): each position
-    /// `p − origin` computed in f64, then rounded once to f32.
+    /// `p − origin` computed in f64, then rounded once to f32. A vertex farther than
+    /// [`MAX_FRAME_COORDINATE`] from `origin` along an axis is an error: the f32 triangle test
+    /// would overflow on it and lose its triangles.
     pub fn to_frame(&self, origin: DVec3) -> Result<TriangleMesh, MeshError> {
-        let vertices: Vec<[f32; 3]> = self
-            .positions
-            .iter()
-            .map(|p| (DVec3::from_array(*p) - origin).as_vec3().to_array())
-            .collect();
-        if !vertices.iter().flatten().all(|c| c.is_finite()) {
-            return Err(MeshError::Obj {
-                path: self.path.clone(),
-                message: format!("a vertex is out of f32 range relative to the eye at {origin}"),
-            });
-        }
+        let vertices = frame_vertices(&self.path, &self.positions, origin)?;
         Ok(TriangleMesh {
             vertices,
             indices: self.indices.clone(),

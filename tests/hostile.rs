@@ -524,10 +524,53 @@ fn a_huge_triangle_is_shaded_like_a_small_one() {
     let small = centre(1.0);
     assert!(small.x > 0.5, "the small triangle is lit: {small}");
     // From ±1e10 the f32 square length of the normal overflowed (NaN shading: the direct light
-    // was lost). At ±1e19 the triangle is missed altogether: the intersection test overflows,
-    // which is the traversal's part of case 15, not mended here.
-    for s in [1e10, 1e12, 1e18] {
+    // was lost). Beyond ±1e12 (mesh::MAX_FRAME_COORDINATE) the mesh is refused: see below.
+    for s in [1e10, 1e12] {
         assert_eq!(centre(s), small, "±{s}");
+    }
+}
+
+#[test]
+fn a_triangle_beyond_the_f32_triangle_test_is_an_error_not_a_black_image() {
+    // At ±1e19 the f32 intersection test overflowed and the triangle rendered black (exit 0);
+    // from about ±2e12 at depth its distance term can overflow too. Such a mesh is now refused,
+    // naming the file and the limit, on every load path (the tree cache's and the direct one).
+    let dir = Scratch::new("hostile-beyond-f32-test");
+    for s in [1e13f64, 1e18, 1e19] {
+        dir.write(
+            "t.obj",
+            &format!(
+                "v {} {} -5\nv {} {} -5\nv 0 {} -5\nf 1 2 3\n",
+                -s, -s, s, -s, s
+            ),
+        );
+        let scene = dir.write(
+            "s.toml",
+            &format!(
+                "[image]\nwidth = 3\nheight = 3\n\n{}[render]\nshadows = true\n\n\
+                 [[light]]\nposition = [0.0, 0.0, 0.0]\n\n\
+                 [[mesh]]\npath = \"t.obj\"\nmaterial = \"floor\"\n",
+                scene_text("")
+            ),
+        );
+        let scene = load(&scene).unwrap_or_else(|e| panic!("{}", chain(&e)));
+        let e = World::load(&scene)
+            .map(|_| ())
+            .expect_err("a mesh beyond the limit");
+        let msg = chain(&e);
+        assert!(
+            msg.contains("t.obj") && msg.contains("the f32 triangle test overflows"),
+            "±{s}: {msg}"
+        );
+        let cache = wavefront::cache::TreeCache::new(dir.join("cache"));
+        let e = World::load_cached(&scene, Some(&cache))
+            .map(|_| ())
+            .expect_err("the cache path refuses it too");
+        assert!(
+            chain(&e).contains("the f32 triangle test overflows"),
+            "±{s} (cache): {}",
+            chain(&e)
+        );
     }
 }
 

@@ -9,8 +9,6 @@
 
 use std::time::Instant;
 
-use rayon::prelude::*;
-
 use super::{
     SetupTimes, Triangles, World, check_mesh_path, check_not_empty, load_triangles, tree_source,
 };
@@ -210,26 +208,8 @@ fn triangles_in(
     entry: CachedTree,
     frame: &RenderFrame,
 ) -> Result<Triangles, LoadError> {
-    let vertices: Vec<[f32; 3]> = entry
-        .positions
-        .par_iter()
-        .with_min_len(1 << 14)
-        .map(|&p| frame.point(p.into()).to_array())
-        .collect();
-    if !vertices
-        .par_iter()
-        .with_min_len(1 << 14)
-        .all(|v| v.iter().all(|c| c.is_finite()))
-    {
-        return Err(MeshError::Obj {
-            path: scene.meshes[0].path.clone(),
-            message: format!(
-                "a vertex is out of f32 range relative to the eye at {}",
-                frame.origin
-            ),
-        }
-        .into());
-    }
+    let vertices =
+        crate::mesh::frame_vertices(&scene.meshes[0].path, &entry.positions, frame.origin)?;
     let mesh = TriangleMesh::new(vertices, entry.indices);
     let mut first = 0u64;
     let material_ranges = scene
