@@ -224,7 +224,7 @@ fn with_table<R>(inv_gamma: f32, f: impl FnOnce(&GammaTable) -> R) -> R {
 /// That is [`gamma_level`] itself wherever it does not decrease (everywhere, as far as tested)
 /// for the cost of a table look-up instead of an `exp2` and a `log2` per channel.
 ///
-/// The look-up: the value's bit pattern shifted right by [`BUCKET_SHIFT`] names a bucket (its
+/// The look-up: the value's bit pattern shifted right by `BUCKET_SHIFT` names a bucket (its
 /// exponent and top mantissa bits), whose entry is the level at the bucket's first value; the
 /// thresholds inside the bucket (rarely more than one) are then stepped over. The count is the
 /// same as a search over all 255 thresholds (tested on every threshold's neighbours and on
@@ -236,7 +236,7 @@ pub struct GammaTable {
     /// `start[k − 1]`: the first value of level `k`, increasing.
     start: [f32; 255],
     /// `bucket[b]`: the level of the smallest non-negative f32 whose bits shifted right by
-    /// [`BUCKET_SHIFT`] are `b`, for every bucket up to and including 1.0's.
+    /// `BUCKET_SHIFT` are `b`, for every bucket up to and including 1.0's.
     bucket: Box<[u8]>,
 }
 

@@ -219,7 +219,7 @@ enum Body {
     /// PPM: the P6 header is written; rows are written as they are.
     Ppm(BufWriter<File>),
     /// EXR: nothing is written yet; rows of f32 RGB (little-endian) are encoded block row by
-    /// block row ([`encode_exr`]) as they arrive.
+    /// block row (`encode_exr`) as they arrive.
     Exr {
         /// The file.
         out: BufWriter<File>,
@@ -634,7 +634,7 @@ pub fn write_exr_with(
     write_atomically(path, bytes.get_ref()).map_err(|e| io_error(path, e))
 }
 
-/// Rows per EXR block: the height of the tiles of the encoding [`encode_exr`] uses (its blocks
+/// Rows per EXR block: the height of the tiles of the encoding `encode_exr` uses (its blocks
 /// are written tile row after tile row, so a stream holds at most this many rows).
 pub fn exr_block_rows() -> usize {
     match exr_encoding().blocks {
