@@ -73,9 +73,9 @@ fn an_exr_is_streamed_in_block_rows_with_the_bytes_of_the_whole_film() {
 
     // Memory: a 4096 × 2048 image, one sample, waves of 4096 samples. The whole film alone is
     // 96 MiB (and Film::save's encoded copy as much again); the stream holds a block row (64
-    // rows, 3 MiB) twice and the encoder's blocks. The peak resident size of the streamed EXR
-    // render is compared with that of the same render streamed to PNG (rows of 8 bits: bounded
-    // by the wave), after a first render has warmed the allocator and the pools up.
+    // rows, 3 MiB) twice and the encoder's blocks; the PNG stream a few waves. The peak resident
+    // size of each streamed render, after a first render has warmed the allocator and the pools
+    // up, is a fraction of the film.
     let mut big = spheres();
     big.image.width = 4096;
     big.image.height = 2048;
@@ -98,8 +98,10 @@ fn an_exr_is_streamed_in_block_rows_with_the_bytes_of_the_whole_film() {
     let png = peak_of("big.png");
     let exr = peak_of("big.exr");
     let whole = 4096 * 2048 * 12;
+    // Regression (CI, session 8): the wave workers ran ahead of a slower sink through an
+    // unbounded channel, so both streams peaked at 40-90 MB, growing with the image.
     assert!(
-        exr < png + whole / 4,
+        png < whole / 4 && exr < whole / 4,
         "peak {exr} bytes streaming the EXR, {png} the PNG; the whole film is {whole}"
     );
     let back = read_exr(&dir.join("big.exr")).unwrap();

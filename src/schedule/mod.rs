@@ -403,18 +403,32 @@ pub fn render_into(
     // Several waves at once: each worker traces whole waves, taken in order from a shared
     // counter, on its own queues (kept warm in its core's cache), inside its own one-thread pool
     // so the kernels run on that thread unsplit (no stealing of another wave's chunks). The
-    // calling thread hands finished waves to the sink in wave order (a reorder buffer).
+    // calling thread hands finished waves to the sink in wave order (a reorder buffer). A worker
+    // takes a ticket before a wave and the calling thread returns it once the wave is in the
+    // sink, so at most `WAVES_AHEAD_PER_THREAD` waves per thread are traced and not yet written:
+    // a sink slower than the tracers (PNG compression at one sample per pixel) holds memory of a
+    // few waves, not of the image.
     let next = Mutex::new(waves(scene, options).enumerate());
     let stop = AtomicBool::new(false);
     let (send, receive) = crossbeam_channel::unbounded::<(usize, Wave, Vec<Vec3>, RunLog)>();
+    let window = WAVES_AHEAD_PER_THREAD * pools.len();
+    let (give_ticket, take_ticket) = crossbeam_channel::bounded::<()>(window);
+    for _ in 0..window {
+        let _ = give_ticket.send(());
+    }
     std::thread::scope(|scope| {
+        // Dropped when this closure returns, which wakes workers waiting for a ticket.
+        let give_ticket = give_ticket;
         for pool in &pools {
             let send = send.clone();
-            let (next, stop, trace) = (&next, &stop, &trace);
+            let (next, stop, trace, take_ticket) = (&next, &stop, &trace, &take_ticket);
             scope.spawn(move || {
                 pool.install(|| {
                     WAVE_QUEUES.with_borrow_mut(|ws| {
                         while !stop.load(Ordering::Relaxed) {
+                            if take_ticket.recv().is_err() {
+                                break;
+                            }
                             let Some((i, wave)) = next.lock().ok().and_then(|mut w| w.next())
                             else {
                                 break;
@@ -439,6 +453,7 @@ pub fn render_into(
                     observer.stage_done(run);
                 }
                 sink.put(PixelIndex(wave.first), &px);
+                let _ = give_ticket.send(());
                 done += u64::from(wave.pixels);
                 observer.wave_done(done, total);
                 expected += 1;
@@ -453,6 +468,10 @@ pub fn render_into(
         idle.extend(pools);
     }
 }
+
+/// Waves per worker thread that may be traced and not yet in the sink (the wave-parallel
+/// path's window: enough that a worker never waits for the reorder buffer on an even load).
+const WAVES_AHEAD_PER_THREAD: usize = 4;
 
 /// One-thread pools of the wave-parallel path, idle between renders: a render takes one per
 /// thread and gives them back, so their threads (and the queues each keeps in
