@@ -51,7 +51,7 @@ fn main() {
     pool.install(|| render_observed(&scene, &world, &RenderOptions::default(), &mut cap));
     let (o, d, t) = &cap.cam;
     let n = o.len();
-    let chunk = wavefront::stages::intersect::TRACE_CHUNK;
+    let chunk = wavefront::queue::TRACE_CHUNK;
     let (mut ot, mut otri) = (vec![0.0f32; n], vec![0u32; n]);
     let (so, sd, st) = &cap.shadow;
     let m = so.len();

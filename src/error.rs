@@ -1,4 +1,6 @@
-//! Error types, one per domain: scene files, geometry loading (meshes and trees), output images.
+//! The error types every layer shares (scene files, output images) and how errors are printed;
+//! a layer's own errors live with it ([`crate::mesh::MeshError`], the tree's `TreeError`,
+//! [`crate::world::LoadError`], which gathers them).
 //!
 //! Messages are lowercase and name the file and line where there is one.
 //!
@@ -11,9 +13,6 @@
 //! `#[error(transparent)]`.
 
 use std::path::PathBuf;
-
-pub use crate::accel::kdtree::TreeError;
-pub use crate::mesh::MeshError;
 
 /// A scene that cannot be read or is not valid.
 #[derive(Debug, thiserror::Error)]
@@ -103,20 +102,6 @@ pub fn short(x: f64) -> String {
     }
 }
 
-/// Anything that can go wrong turning a [`crate::scene::Scene`] into a traceable world.
-#[derive(Debug, thiserror::Error)]
-pub enum LoadError {
-    /// The scene itself is at fault (e.g. a missing mesh).
-    #[error(transparent)]
-    Scene(#[from] SceneError),
-    /// A mesh file is malformed.
-    #[error(transparent)]
-    Mesh(#[from] MeshError),
-    /// A tree file is malformed or does not fit the mesh.
-    #[error(transparent)]
-    Tree(#[from] TreeError),
-}
-
 /// An image that cannot be written.
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
@@ -160,6 +145,9 @@ pub fn chain(error: &dyn std::error::Error) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::accel::kdtree::TreeError;
+    use crate::mesh::MeshError;
+    use crate::world::LoadError;
 
     #[test]
     fn every_wrapped_cause_is_said_once() {

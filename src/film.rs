@@ -5,18 +5,12 @@
 //! Accumulation is deterministic: every addition into a sample happens in schedule order (depth by
 //! depth, shade before shadow), and within one pass each sample is written by exactly one task.
 
-use std::path::Path;
-
 use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::arith;
-use crate::error::OutputError;
-use crate::output::{ImageMeta, write_rgb8};
 use crate::queue::{MIN_CHUNK, PixelIndex, SampleSlot};
 use crate::wave::Wave;
-
-pub use crate::output::write_atomically;
 
 /// Where the schedule puts each wave's resolved pixels (linear radiance), as soon as the wave is
 /// done. Waves arrive in ascending pixel order and never overlap; pixels never delivered (outside
@@ -144,22 +138,6 @@ impl Film {
             .zip(self.pixels.par_chunks(MIN_CHUNK))
             .for_each(|(out, px)| encode_rgb8(px, inv, out));
         rgb
-    }
-
-    /// Writes the image as `.png` or `.ppm` (by extension). The file appears complete or not at
-    /// all: it is written to a temporary name beside it and renamed. The same encoder as a
-    /// streamed render ([`crate::output::ImageStream`]): the same pixels give the same bytes.
-    pub fn save(&self, path: &Path, gamma: f32) -> Result<(), OutputError> {
-        self.save_with(path, gamma, &ImageMeta::default())
-    }
-
-    /// [`Film::save`] with metadata (PNG text chunks). A `.exr` path gets the linear radiance
-    /// (f32 RGB, no gamma, no clamp; SPEC §13) through [`crate::output::write_exr`].
-    pub fn save_with(&self, path: &Path, gamma: f32, meta: &ImageMeta) -> Result<(), OutputError> {
-        if crate::output::is_exr(path) {
-            return crate::output::write_exr(path, self);
-        }
-        write_rgb8(path, (self.width, self.height), meta, &self.to_rgb8(gamma))
     }
 }
 
@@ -313,12 +291,6 @@ impl GammaTable {
         // `!(t > c)` counts thresholds at or below c (all 255 for c ≥ 1, none for c ≤ 0).
         self.start.partition_point(|&t| t <= c) as u8
     }
-}
-
-/// Writes 8-bit RGB pixels to `path` as PNG or binary PPM (P6), atomically: the bytes go to a
-/// temporary file beside it, which is renamed over `path` only when complete.
-pub fn save_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), OutputError> {
-    write_rgb8(path, (width, height), &ImageMeta::default(), rgb)
 }
 
 #[cfg(test)]

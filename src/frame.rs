@@ -8,15 +8,9 @@
 
 use glam::{DVec3, Vec3};
 
+pub use crate::geometry::frame::RenderFrame;
 use crate::mesh::ObjMesh;
 use crate::scene;
-
-/// The translation from world coordinates to the render frame.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct RenderFrame {
-    /// The frame's origin in world coordinates (the eye).
-    pub origin: DVec3,
-}
 
 /// A sphere in the render frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -157,12 +151,8 @@ impl Light {
     }
 }
 
+/// The render frame of meshes and of the scene's primitives.
 impl RenderFrame {
-    /// The frame of a camera whose eye is `eye` (world coordinates).
-    pub fn at(eye: DVec3) -> RenderFrame {
-        RenderFrame { origin: eye }
-    }
-
     /// The frame centred on a mesh's bounding box (f64): where a mesh on its own — `kdtree build`
     /// — is built with the most precision.
     pub fn centered_on(mesh: &ObjMesh) -> RenderFrame {
@@ -173,24 +163,6 @@ impl RenderFrame {
             DVec3::ZERO
         };
         RenderFrame { origin }
-    }
-
-    /// A world point in the frame: `p − origin` in f64, rounded once to f32.
-    #[inline]
-    pub fn point(&self, p: DVec3) -> Vec3 {
-        (p - self.origin).as_vec3()
-    }
-
-    /// A world coordinate along `axis` in the frame (for tree-file boxes and split planes).
-    #[inline]
-    pub fn coordinate(&self, axis: usize, x: f64) -> f32 {
-        (x - self.origin[axis]) as f32
-    }
-
-    /// A frame coordinate along `axis` back in world coordinates (f64, exact).
-    #[inline]
-    pub fn world_coordinate(&self, axis: usize, x: f32) -> f64 {
-        f64::from(x) + self.origin[axis]
     }
 
     /// A scene sphere in the frame.

@@ -45,7 +45,6 @@ pub mod frame;
 pub mod geometry;
 pub mod input;
 pub mod mesh;
-pub mod obj_fast;
 pub mod output;
 pub mod queue;
 pub mod region;
@@ -53,7 +52,6 @@ pub mod sampling;
 pub mod scene;
 pub mod schedule;
 pub mod simd;
-pub mod stats;
 pub mod tile;
 pub mod wave;
 pub mod world;
@@ -63,13 +61,13 @@ pub mod stages;
 
 pub use film::Film;
 pub use scene::Scene;
+pub use schedule::Stats;
 pub use schedule::{Pipeline, RenderOptions, Stage, render, render_into, render_observed};
-pub use stats::Stats;
-pub use world::World;
+pub use world::{LoadError, World};
 
 /// Loads a scene by built-in name or file path: a scene file, or a bare mesh (`.obj`), which
 /// is framed automatically ([`scene::framing::bare_mesh`], SPEC §16).
-pub fn load_scene(name_or_path: &str) -> Result<Scene, error::LoadError> {
+pub fn load_scene(name_or_path: &str) -> Result<Scene, world::LoadError> {
     load_scene_with(name_or_path, &[])
 }
 
@@ -79,7 +77,7 @@ pub fn load_scene(name_or_path: &str) -> Result<Scene, error::LoadError> {
 pub fn load_scene_with(
     name_or_path: &str,
     settings: &[scene::set::Setting],
-) -> Result<Scene, error::LoadError> {
+) -> Result<Scene, world::LoadError> {
     let path = std::path::Path::new(name_or_path);
     let builtin = scene::builtin::builtin(name_or_path);
     if builtin.is_none() && !path.exists() {
@@ -98,5 +96,7 @@ pub fn load_scene_with(
         return Ok(s);
     }
     mesh::check_format(path)?;
-    scene::framing::bare_mesh(path, (width.unwrap_or(512), height.unwrap_or(512)))
+    let mesh = mesh::ObjMesh::read(path)?;
+    let size = (width.unwrap_or(512), height.unwrap_or(512));
+    Ok(scene::framing::bare_mesh(path, &mesh, size)?)
 }

@@ -14,11 +14,15 @@ use std::borrow::Cow;
 use std::io::BufReader;
 use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
+use glam::DVec3;
 use thiserror::Error;
 
 pub mod gltf;
+pub mod mtl;
+pub mod obj_fast;
 pub mod ply;
+
+pub use crate::geometry::mesh::TriangleMesh;
 
 /// Errors from loading a mesh. Messages are lowercase and name the file and, where there is one,
 /// the 1-based line.
@@ -141,7 +145,7 @@ pub fn check_format(path: &Path) -> Result<Format, MeshError> {
 
 /// Reads the mesh file `path` whose bytes are `bytes`, in the format its extension names
 /// ([`check_format`]): the one place where formats are told apart. OBJ goes through the fast
-/// parser ([`crate::obj_fast`]) when `fast` and `what` asks for nothing but positions and faces,
+/// parser ([`crate::mesh::obj_fast`]) when `fast` and `what` asks for nothing but positions and faces,
 /// else through tobj ([`ObjMesh::parse_with`]); PLY through [`ply::parse`]; glTF through
 /// [`gltf::parse`] (which reads external buffers relative to `path`).
 pub fn read_bytes(
@@ -154,7 +158,7 @@ pub fn read_bytes(
         Format::Obj => {
             if fast
                 && what == ObjRead::default()
-                && let Some((positions, indices)) = crate::obj_fast::parse(bytes)
+                && let Some((positions, indices)) = crate::mesh::obj_fast::parse(bytes)
             {
                 return Ok(ObjMesh {
                     path: path.to_path_buf(),
@@ -241,97 +245,11 @@ pub fn frame_vertices(
         .collect())
 }
 
-/// An indexed triangle mesh stored as flat, `Pod` arrays (castable with `bytemuck`).
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct TriangleMesh {
-    /// Vertex positions.
-    pub vertices: Vec<[f32; 3]>,
-    /// Vertex indices of each triangle; triangle `k` is the `k`-th face of the source file.
-    pub indices: Vec<[u32; 3]>,
-}
-
+/// Reading a [`TriangleMesh`] (the f32 mesh a tree is built over, defined with the geometry).
 impl TriangleMesh {
-    /// Builds a mesh from vertex and index arrays (no validation beyond debug assertions).
-    pub fn new(vertices: Vec<[f32; 3]>, indices: Vec<[u32; 3]>) -> TriangleMesh {
-        debug_assert!(
-            indices
-                .iter()
-                .flatten()
-                .all(|&i| (i as usize) < vertices.len())
-        );
-        TriangleMesh { vertices, indices }
-    }
-
     /// Loads an OBJ file in its own coordinates (see [`ObjMesh::read`]).
     pub fn load_obj(path: &Path) -> Result<TriangleMesh, MeshError> {
         ObjMesh::read(path)?.to_frame(DVec3::ZERO)
-    }
-
-    /// Number of triangles.
-    pub fn len(&self) -> usize {
-        self.indices.len()
-    }
-
-    /// True when the mesh has no triangles.
-    pub fn is_empty(&self) -> bool {
-        self.indices.is_empty()
-    }
-
-    /// The three vertices of triangle `k`. Panics if `k` is out of range.
-    #[inline]
-    pub fn triangle(&self, k: usize) -> [Vec3; 3] {
-        let [a, b, c] = self.indices[k];
-        [
-            Vec3::from_array(self.vertices[a as usize]),
-            Vec3::from_array(self.vertices[b as usize]),
-            Vec3::from_array(self.vertices[c as usize]),
-        ]
-    }
-
-    /// Geometric normal of triangle `k`: the UNNORMALISED cross product `(b - a) × (c - a)`
-    /// (its length is twice the area; zero for degenerate triangles).
-    pub fn geometric_normal(&self, k: usize) -> Vec3 {
-        let [a, b, c] = self.triangle(k);
-        (b - a).cross(c - a)
-    }
-
-    /// Unit geometric normal of triangle `k`. When the f32 cross product's square length is a
-    /// normal number it is normalised in f32 (the bits every valid scene had); when it underflows
-    /// or overflows (a tiny triangle, or one spanning ±1e19) the cross product is taken in f64 and
-    /// scaled by its largest component before normalising, so a huge triangle's normal does not
-    /// overflow to NaN.
-    #[inline]
-    pub fn unit_normal(&self, k: usize) -> Vec3 {
-        let n = self.geometric_normal(k);
-        let l2 = n.length_squared();
-        if l2.is_normal() && l2.is_finite() {
-            return n.normalize();
-        }
-        let [a, b, c] = self.triangle(k).map(|v| v.as_dvec3());
-        let n = (b - a).cross(c - a);
-        (n / n.abs().max_element()).normalize().as_vec3()
-    }
-
-    /// True when triangle `k` has zero area: its edge cross product, computed in `f64` from the
-    /// `f32` coordinates, is exactly zero. Degenerate triangles keep their index but are never
-    /// hit (the kD tree leaves them out and the brute-force reference skips them).
-    pub fn is_degenerate(&self, k: usize) -> bool {
-        let [a, b, c] = self.triangle(k).map(|v| v.as_dvec3());
-        (b - a).cross(c - a) == DVec3::ZERO
-    }
-
-    /// Axis-aligned bounds `(min, max)` of all vertices; `(0, 0)` for a mesh without vertices.
-    pub fn bounds(&self) -> (Vec3, Vec3) {
-        if self.vertices.is_empty() {
-            return (Vec3::ZERO, Vec3::ZERO);
-        }
-        self.vertices.iter().fold(
-            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-            |(lo, hi), v| {
-                let v = Vec3::from_array(*v);
-                (lo.min(v), hi.max(v))
-            },
-        )
     }
 }
 
@@ -441,7 +359,7 @@ impl ObjMesh {
             if !what.materials {
                 return Err(tobj::LoadError::OpenFileFailed);
             }
-            crate::scene::mtl::tobj_library(&dir.join(lib)).map_err(|e| {
+            mtl::tobj_library(&dir.join(lib)).map_err(|e| {
                 library_error
                     .borrow_mut()
                     .get_or_insert_with(|| crate::error::chain(&e));
@@ -929,6 +847,7 @@ fn clip(w: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     fn temp_obj(name: &str, text: &str) -> PathBuf {
         let path = std::env::temp_dir().join(format!(

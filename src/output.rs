@@ -28,7 +28,7 @@ use crossbeam_channel::{Receiver, Sender};
 use glam::Vec3;
 
 use crate::error::OutputError;
-use crate::film::{PixelSink, encode_rgb8};
+use crate::film::{Film, PixelSink, encode_rgb8};
 use crate::queue::PixelIndex;
 
 /// Bytes of compressed image data per PNG `IDAT` chunk (the stream writer's buffer).
@@ -602,6 +602,31 @@ impl Drop for ImageStream {
             let _ = writer.join();
         }
     }
+}
+
+/// Saving a whole film (a render that is not streamed).
+impl Film {
+    /// Writes the image as `.png` or `.ppm` (by extension). The file appears complete or not at
+    /// all: it is written to a temporary name beside it and renamed. The same encoder as a
+    /// streamed render ([`ImageStream`]): the same pixels give the same bytes.
+    pub fn save(&self, path: &Path, gamma: f32) -> Result<(), OutputError> {
+        self.save_with(path, gamma, &ImageMeta::default())
+    }
+
+    /// [`Film::save`] with metadata (PNG text chunks). A `.exr` path gets the linear radiance
+    /// (f32 RGB, no gamma, no clamp; SPEC §13) through [`write_exr`].
+    pub fn save_with(&self, path: &Path, gamma: f32, meta: &ImageMeta) -> Result<(), OutputError> {
+        if is_exr(path) {
+            return write_exr(path, self);
+        }
+        write_rgb8(path, (self.width, self.height), meta, &self.to_rgb8(gamma))
+    }
+}
+
+/// Writes 8-bit RGB pixels to `path` as PNG or binary PPM (P6), atomically: the bytes go to a
+/// temporary file beside it, which is renamed over `path` only when complete.
+pub fn save_rgb8(path: &Path, width: u32, height: u32, rgb: &[u8]) -> Result<(), OutputError> {
+    write_rgb8(path, (width, height), &ImageMeta::default(), rgb)
 }
 
 /// True when `path` names an OpenEXR file (`.exr`, any case).

@@ -627,7 +627,7 @@ mod tests {
         assert_eq!((back.info, back.rgb), (t.info.clone(), t.rgb.clone()));
         // A plain PNG is not a tile; garbage is unreadable; both name the file.
         let plain = dir.join("plain.png");
-        crate::film::save_rgb8(&plain, 3, 2, &t.rgb).unwrap();
+        crate::output::save_rgb8(&plain, 3, 2, &t.rgb).unwrap();
         let e = read_tile(&plain).unwrap_err().to_string();
         assert!(e.contains("plain.png: not a wavefront tile"), "{e}");
         let junk = dir.join("junk.png");

@@ -5,8 +5,9 @@ use std::time::Instant;
 
 use glam::Vec3;
 
+use crate::accel::kdtree::TreeError;
 use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
-use crate::error::{LoadError, SceneError};
+use crate::error::SceneError;
 use crate::frame::{Light, Plane, RenderFrame, Sphere};
 use crate::geometry::offset::{gamma, offset_fixed, offset_ray_origin};
 use crate::geometry::{plane, sphere, triangle};
@@ -21,6 +22,20 @@ mod sphere_bvh;
 pub use analytic::SurfaceOut;
 pub use cached::{CacheStatus, Setup};
 pub use sphere_bvh::{SPHERE_BVH_MIN, SphereBvh};
+
+/// Anything that can go wrong turning a [`Scene`] into a traceable world.
+#[derive(Debug, thiserror::Error)]
+pub enum LoadError {
+    /// The scene itself is at fault (e.g. a missing mesh).
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// A mesh file is malformed.
+    #[error(transparent)]
+    Mesh(#[from] MeshError),
+    /// A tree file is malformed or does not fit the mesh.
+    #[error(transparent)]
+    Tree(#[from] TreeError),
+}
 
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -444,7 +459,7 @@ impl World {
     ) {
         // Whole trace chunks, so camera rays still form 8 × 8-pixel frusta (blocks of 256 rays,
         // half an image row, traced at about half the speed).
-        const BLOCK: usize = crate::stages::intersect::TRACE_CHUNK;
+        const BLOCK: usize = crate::queue::TRACE_CHUNK;
         let base = self.triangle_base();
         let mut limit = [0.0f32; BLOCK];
         let mut tri_t = [0.0f32; BLOCK];

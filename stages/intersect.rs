@@ -10,7 +10,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::queue::compact::{count_chunks, split_by_counts};
-use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue, SampleSlot};
+use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue, SampleSlot, TRACE_CHUNK};
 use crate::world::World;
 
 crate::column_set! {
@@ -49,10 +49,6 @@ crate::column_set! {
         write prim: PrimId,
     }
 }
-
-/// Rays per call of [`World::intersect_closest_batch`]: 8 rows of a 512-pixel-wide image at one
-/// sample per pixel, so the kD tree can regroup camera rays into 8 × 8 pixel tiles.
-pub const TRACE_CHUNK: usize = 4 * MIN_CHUNK;
 
 /// Closest hit of every ray (one row per ray). Chunks of up to [`TRACE_CHUNK`] rays go through
 /// [`World::intersect_closest_batch`] (camera rays as frusta of screen tiles, others as packets

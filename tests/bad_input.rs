@@ -148,12 +148,12 @@ proptest! {
         // The fast reader takes a file only if tobj reads it to the same mesh; otherwise it
         // hands it to tobj, whose errors name file and line.
         let slow = wavefront::mesh::ObjMesh::read(&path);
-        if let Some((positions, indices)) = wavefront::obj_fast::parse(text.as_bytes()) {
+        if let Some((positions, indices)) = wavefront::mesh::obj_fast::parse(text.as_bytes()) {
             let slow = slow.as_ref().expect("the fast path took a file tobj rejects");
             prop_assert_eq!(&positions, &slow.positions);
             prop_assert_eq!(&indices, &slow.indices);
         }
-        match wavefront::obj_fast::read_bytes(&path, text.as_bytes()) {
+        match wavefront::mesh::obj_fast::read_bytes(&path, text.as_bytes()) {
             Ok(fast) => prop_assert_eq!(Some(&fast), slow.as_ref().ok()),
             Err(e) => assert_names_file(&e.to_string(), &path, &text),
         }

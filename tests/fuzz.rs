@@ -342,7 +342,7 @@ fn fuzzed_obj_files_load_valid_meshes_or_name_the_file() {
             }
             Err(e) => assert_names(&chain(&e), "m.obj"),
         }
-        if let Some((positions, indices)) = wavefront::obj_fast::parse(text.as_bytes()) {
+        if let Some((positions, indices)) = wavefront::mesh::obj_fast::parse(text.as_bytes()) {
             // The fast path takes a file only if the full reader reads it to the same mesh.
             let slow = ObjMesh::parse_with(&text, &path, ObjRead::default())
                 .unwrap_or_else(|e| panic!("the fast path took a file the reader rejects: {e}"));
@@ -436,7 +436,7 @@ fn fuzzed_mtl_files_give_valid_materials_or_name_file_and_line() {
     let path = PathBuf::from("fuzz.mtl");
     fuzz("mtl", MTL.as_bytes(), |bytes| {
         let text = String::from_utf8_lossy(bytes);
-        match wavefront::scene::mtl::parse_library(&text, &path) {
+        match wavefront::mesh::mtl::parse_library(&text, &path) {
             Ok(materials) => {
                 for m in &materials {
                     for c in [m.ambient, m.diffuse, m.specular].into_iter().flatten() {

@@ -141,7 +141,7 @@ fn faces_with_fewer_than_three_corners_and_vn_index_zero_are_errors() {
         let e = ObjMesh::read_with(&path, what).expect_err(&format!("`{f}` accepted"));
         assert!(chain(&e).contains("m.obj:5:"), "`{f}`: {}", chain(&e));
         let bytes = std::fs::read(&path).unwrap();
-        let e = wavefront::obj_fast::read_bytes(&path, &bytes)
+        let e = wavefront::mesh::obj_fast::read_bytes(&path, &bytes)
             .expect_err(&format!("`{f}` accepted by the fast reader"));
         assert!(chain(&e).contains("m.obj:5:"), "`{f}`: {}", chain(&e));
     }
@@ -163,7 +163,7 @@ fn a_file_that_is_not_obj_is_an_error_naming_the_line_not_an_empty_mesh() {
         let e = TriangleMesh::load_obj(&path).expect_err("not an OBJ file accepted");
         let want = format!("m.obj:{line}:");
         assert!(chain(&e).contains(&want), "{}", chain(&e));
-        let e = wavefront::obj_fast::read_bytes(&path, text.as_bytes())
+        let e = wavefront::mesh::obj_fast::read_bytes(&path, text.as_bytes())
             .expect_err("not an OBJ file accepted by the fast reader");
         assert!(chain(&e).contains(&want), "{}", chain(&e));
     }
@@ -176,7 +176,7 @@ fn cr_only_line_endings_keep_the_mesh() {
     let path = dir.write("m.obj", &text);
     let mesh = TriangleMesh::load_obj(&path).expect("CR-only OBJ");
     assert_eq!(mesh.len(), 1);
-    let fast = wavefront::obj_fast::read_bytes(&path, text.as_bytes()).expect("CR-only OBJ");
+    let fast = wavefront::mesh::obj_fast::read_bytes(&path, text.as_bytes()).expect("CR-only OBJ");
     assert_eq!(fast.indices.len(), 1);
 }
 

@@ -1,6 +1,10 @@
 //! Ray/primitive tests and the secondary-ray origin offset.
 
+pub mod frame;
+pub mod mesh;
 pub mod offset;
 pub mod plane;
 pub mod sphere;
 pub mod triangle;
+
+pub use mesh::TriangleMesh;

@@ -7,8 +7,17 @@
 
 use glam::Vec3;
 
+use super::TriangleMesh;
 use super::offset::gamma;
-use crate::mesh::TriangleMesh;
+
+/// Which ray/triangle test the kD traversal uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TriangleTest {
+    /// Woop, Benthin & Wald 2013. The default.
+    Watertight,
+    /// Möller–Trumbore, kept for the error report.
+    MollerTrumbore,
+}
 
 /// Per-ray data of the watertight test, computed once per ray and shared by every triangle test
 /// (and by kD-tree traversal).

@@ -1097,7 +1097,7 @@ impl Cx<'_> {
     }
 
     /// The camera of `from = "gltf"`: the first perspective camera of the first glTF mesh
-    /// ([`crate::mesh::gltf::camera`]) on this scene's image.
+    /// ([`crate::scene::gltf::camera`]) on this scene's image.
     fn gltf_camera(
         &self,
         span: Range<usize>,
@@ -1114,14 +1114,14 @@ impl Cx<'_> {
                 )
             })
             .ok_or_else(|| fail("from = \"gltf\" needs a [[mesh]] that is a glTF file".into()))?;
-        let view = crate::mesh::gltf::camera(&gltf.path)
+        let view = crate::scene::gltf::camera(&gltf.path)
             .map_err(|e| fail(format!("no camera: {}", crate::error::chain(&e))))?;
         view.camera(image.width, image.height)
             .map_err(|e| fail(format!("the glTF camera has no view: {e}")))
     }
 
     /// `[render] lights_from = "gltf"`: the `KHR_lights_punctual` lights of the first glTF mesh
-    /// ([`crate::mesh::gltf::lights`]) as SPEC §14 lights with inverse-square falloff (SPEC §15;
+    /// ([`crate::scene::gltf::lights`]) as SPEC §14 lights with inverse-square falloff (SPEC §15;
     /// a directional light has none); a file without lights is an error.
     fn gltf_lights(
         &self,
@@ -1145,7 +1145,7 @@ impl Cx<'_> {
             })
             .ok_or_else(|| fail("needs a [[mesh]] that is a glTF file".into()))?;
         let found =
-            crate::mesh::gltf::lights(&gltf.path).map_err(|e| fail(crate::error::chain(&e)))?;
+            crate::scene::gltf::lights(&gltf.path).map_err(|e| fail(crate::error::chain(&e)))?;
         if found.is_empty() {
             return Err(fail(format!(
                 "{} has no KHR_lights_punctual light in its default scene",
@@ -1328,8 +1328,8 @@ impl Cx<'_> {
 /// A glTF light as a SPEC §14 light: the cone's full angle is twice `outerConeAngle` and the
 /// penumbra twice the angle between the cones (full intensity inside `2 · innerConeAngle`), in
 /// degrees; point and spot lights fall off with the inverse square of the distance (SPEC §15).
-fn gltf_light(l: crate::mesh::gltf::GltfLight) -> Light {
-    use crate::mesh::gltf::GltfLightKind as G;
+fn gltf_light(l: crate::scene::gltf::GltfLight) -> Light {
+    use crate::scene::gltf::GltfLightKind as G;
     let (kind, falloff) = match l.kind {
         G::Point { position } => (LightKind::Point { position }, Falloff::InverseSquare),
         G::Directional { direction } => (LightKind::Directional { direction }, Falloff::None),

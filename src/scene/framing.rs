@@ -16,7 +16,7 @@ use super::{
     ImageSettings, Light, Material, MeshRef, RenderMode, RenderSettings, Robustness, Scene,
     TreeSource,
 };
-use crate::error::{LoadError, SceneError};
+use crate::error::SceneError;
 use crate::mesh::ObjMesh;
 
 /// The default direction from the box's centre to the eye.
@@ -61,9 +61,12 @@ pub fn frame_box(
 /// The scene of `wavefront render MESH.obj`: the mesh framed by [`frame_box`] from
 /// [`DEFAULT_FROM`] at [`DEFAULT_FOV_Y`] on a `width × height` image (512 × 512 unless
 /// `--size` says otherwise), one white point light at the eye (no falloff), a grey material
-/// (`kd = 0.8`, `ka = 0.1`), shadows on, no reflections.
-pub fn bare_mesh(path: &Path, (width, height): (u32, u32)) -> Result<Scene, LoadError> {
-    let mesh = ObjMesh::read(path)?;
+/// (`kd = 0.8`, `ka = 0.1`), shadows on, no reflections. `mesh` is the file at `path` as read.
+pub fn bare_mesh(
+    path: &Path,
+    mesh: &ObjMesh,
+    (width, height): (u32, u32),
+) -> Result<Scene, SceneError> {
     let (lo, hi) = mesh.bounds();
     let image = ImageSettings {
         width,

@@ -10,6 +10,7 @@ pub mod camera;
 pub mod camera_path;
 pub mod file;
 pub mod framing;
+pub mod gltf;
 pub mod lookat;
 pub mod mtl;
 pub mod overrides;
@@ -19,6 +20,7 @@ use std::path::PathBuf;
 
 use glam::{DVec3, Vec3};
 
+pub use crate::geometry::triangle::TriangleTest;
 pub use camera::Camera;
 pub use camera_path::CameraPath;
 
@@ -78,15 +80,6 @@ pub enum SphereTest {
     Stable,
     /// The textbook `b² − 4ac` quadratic, kept for the error report.
     Naive,
-}
-
-/// Which ray/triangle test the kD traversal uses.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum TriangleTest {
-    /// Woop, Benthin & Wald 2013. The default.
-    Watertight,
-    /// Möller–Trumbore, kept for the error report.
-    MollerTrumbore,
 }
 
 /// Numerical variants; the defaults are the robust ones.

@@ -18,6 +18,7 @@
 
 pub mod observer;
 pub mod stage;
+pub mod stats;
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;
@@ -42,12 +43,12 @@ use crate::stages::shade::{
     ShadedHits, ShadowPass, ShadowRays, add_emitted, shade_hit_mask, shade_hits, spawn_shadow_rays,
 };
 use crate::stages::shadow::{LitRays, ShadowTrace, add_unoccluded, intersect_occluded};
-use crate::stats::Stats;
 use crate::wave::Wave;
 use crate::world::World;
 use observer::RunLog;
 pub use observer::{Observer, Progress, Queues, StageRun};
 pub use stage::Stage;
+pub use stats::Stats;
 
 /// Default cap on samples per wave: bounds memory whatever the samples per pixel. 2^12 samples
 /// keep a wave's queues at about 2 MB, near the core's L2 (512 KiB on the EPYC used for tuning),

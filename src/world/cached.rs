@@ -1,7 +1,7 @@
 //! Loading a world's triangles through the tree cache ([`crate::cache`]): the mesh files (OBJ,
 //! PLY, glTF: [`crate::mesh::read_bytes`]) are read and hashed once, with their format and any
 //! external glTF buffers ([`crate::mesh::cache_sources`]); on a hit the merged mesh and tree come from the cache entry, on a miss they
-//! are parsed ([`crate::obj_fast`]) and built, and the entry is written for the next run.
+//! are parsed ([`crate::mesh::obj_fast`]) and built, and the entry is written for the next run.
 //!
 //! Either way the tree is built in the frame centred on the merged mesh (as `kdtree build` and
 //! tree files do) and moved to the camera's frame with [`KdTree::reframed`], so a render with a
@@ -9,12 +9,12 @@
 
 use std::time::Instant;
 
+use super::LoadError;
 use super::{
     SetupTimes, Triangles, World, check_mesh_path, check_not_empty, load_triangles, tree_source,
 };
 use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
 use crate::cache::{CacheKey, CachedTree, TreeCache};
-use crate::error::LoadError;
 use crate::frame::RenderFrame;
 use crate::mesh::{MeshError, ObjMesh, TriangleMesh};
 use crate::scene::{Normals, Scene, TreeSource};
@@ -174,7 +174,7 @@ fn merge(scene: &Scene, files: &[Vec<u8>]) -> Result<(ObjMesh, Vec<u64>), LoadEr
     };
     let mut counts = Vec::with_capacity(files.len());
     for (m, bytes) in scene.meshes.iter().zip(files) {
-        let obj = crate::obj_fast::read_bytes(&m.path, bytes)?;
+        let obj = crate::mesh::obj_fast::read_bytes(&m.path, bytes)?;
         check_not_empty(m, &obj)?;
         let base = merged.positions.len() as u32;
         merged.positions.extend_from_slice(&obj.positions);

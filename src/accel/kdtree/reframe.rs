@@ -5,7 +5,7 @@
 use rayon::prelude::*;
 
 use super::{KdNode, KdTree};
-use crate::frame::RenderFrame;
+use crate::geometry::frame::RenderFrame;
 
 impl KdTree {
     /// This tree (built or read in frame `from`) in frame `to`. Triangle lists are unchanged;

@@ -18,7 +18,7 @@ use thiserror::Error;
 
 use super::overlap::Aabb;
 use super::{KdNode, KdTree, MAX_DEPTH, node::MAX_PACKED, split_box};
-use crate::frame::RenderFrame;
+use crate::geometry::frame::RenderFrame;
 
 /// Errors from reading a tree file. Messages are lowercase and start with `path:line:`.
 #[derive(Debug, Error)]

@@ -461,7 +461,7 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
             .with_context(|| format!("cannot create directory {}", dir.display()))?;
     }
     let write = |path: &Path, text: &str| {
-        wavefront::film::write_atomically(path, text.as_bytes())
+        wavefront::output::write_atomically(path, text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))
     };
     write(&render_file, &scripts.render)?;

@@ -660,7 +660,7 @@ fn build_tree(
     wavefront::mesh::check_file(mesh, Some(1 << 20))?;
     let bytes = wavefront::cache::read_parallel(mesh)
         .with_context(|| format!("cannot read mesh file {}", mesh.display()))?;
-    let obj = wavefront::obj_fast::read_bytes(mesh, &bytes)?;
+    let obj = wavefront::mesh::obj_fast::read_bytes(mesh, &bytes)?;
     let load = start.elapsed().as_secs_f64();
     let frame = RenderFrame::centered_on(&obj);
     let m = obj.to_frame(frame.origin)?;

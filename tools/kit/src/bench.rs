@@ -18,7 +18,7 @@ use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
 
-use wavefront::error::LoadError;
+use wavefront::LoadError;
 use wavefront::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
 use wavefront::region::Region;
 use wavefront::scene::Scene;

@@ -234,7 +234,7 @@ const RUNS_PER_ITEM: usize = 4;
 
 /// Rays regrouped together when a batch is traced on several threads: the intersect stage's
 /// chunk on one thread, so that the frusta are the tiles a render traces.
-const PIECE: usize = crate::stages::intersect::TRACE_CHUNK;
+const PIECE: usize = crate::queue::TRACE_CHUNK;
 
 /// Rays from which a closest-hit batch is traced on all the threads of the current rayon pool
 /// ([`KdAccel::closest_frusta_par`]) when it has more than one.

@@ -69,9 +69,9 @@ use rayon::prelude::*;
 
 use super::overlap::Aabb;
 use super::{KdTree, TriHit, exact_root};
+use crate::geometry::triangle::TriangleTest;
 use crate::geometry::triangle::{MollerTrumboreRay, WatertightRay};
 use crate::mesh::TriangleMesh;
-use crate::scene::TriangleTest;
 use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
 pub use bundle::BundleCounts;
 use visit::{Closest, Occluded};
@@ -175,7 +175,7 @@ impl KdAccel {
     /// ([`Level::current`]). Results are bit-identical to the single-ray query whatever the path
     /// and level (each lane makes exactly the single ray's decisions, see the module docs).
     /// Inside a rayon pool of several threads, a batch of 1,024 rays or more is regrouped in
-    /// pieces of [`TRACE_CHUNK`](crate::stages::intersect::TRACE_CHUNK) rays and its frusta are
+    /// pieces of [`TRACE_CHUNK`](crate::queue::TRACE_CHUNK) rays and its frusta are
     /// traced on all the pool's threads. Panics if the slices' lengths differ.
     pub fn intersect_closest_batch(
         &self,
@@ -376,8 +376,8 @@ mod tests {
 
     #[test]
     fn moller_trumbore_traversal_matches_its_brute_force() {
+        use crate::geometry::triangle::TriangleTest;
         use crate::geometry::triangle::intersect_moller_trumbore;
-        use crate::scene::TriangleTest;
         let mesh = twin_mesh();
         let tree = KdAccel::new(KdTree::build(&mesh, BuildMethod::Sah), &mesh);
         for (o, d) in [

@@ -4,7 +4,7 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::time::Duration;
 
-use crate::schedule::{Observer, Stage, StageRun};
+use super::{Observer, Stage, StageRun};
 
 /// Totals for one (depth, stage) over all waves.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
