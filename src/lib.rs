@@ -52,7 +52,6 @@ pub mod sampling;
 pub mod scene;
 pub mod schedule;
 pub mod simd;
-pub mod tile;
 pub mod wave;
 pub mod world;
 

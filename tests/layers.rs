@@ -18,8 +18,6 @@ const LAYERS: &[&str] = &[
     "scene", "frame", "world",
     // The film the stages accumulate into, the stages, image files and the schedule.
     "film", "stages", "output", "schedule",
-    // Tool code still in the core (tiles and their merge serve the CLI).
-    "tile",
 ];
 
 /// The source files of the core crate (`src/` and `stages/`), with their top-level module.

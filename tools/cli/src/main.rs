@@ -27,6 +27,7 @@ mod fuzz_args;
 mod info;
 mod merge;
 mod plan;
+mod tile;
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -486,7 +487,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         }
         let sources = match jobs.region {
             Some(_) => Some(
-                wavefront::tile::SourceDigest::of(&scene)
+                crate::tile::SourceDigest::of(&scene)
                     .context("cannot read the scene's files to fingerprint the tile")?,
             ),
             None => None,

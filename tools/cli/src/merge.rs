@@ -7,7 +7,7 @@ use std::path::PathBuf;
 use anyhow::Result;
 use clap::Args;
 
-use wavefront::tile::{merge_tiles, read_tile};
+use crate::tile::{merge_tiles, read_tile};
 
 /// Arguments of `merge`.
 #[derive(Args, Debug)]

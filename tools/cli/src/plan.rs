@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use anyhow::{Context, Result, bail};
 use clap::Args;
 
+use crate::tile::{Fingerprint, SourceDigest, TileInfo, write_tile};
 use wavefront::region::{Region, TileSpec};
-use wavefront::tile::{Fingerprint, SourceDigest, TileInfo, write_tile};
 use wavefront::{Film, Scene};
 
 use crate::frames::{FrameRange, frame_path, has_frame_placeholder};
@@ -147,7 +147,7 @@ pub fn save_part(
                 image: (image.width, image.height),
                 fingerprint: Fingerprint::of(&job.scene, sources, job.frame),
             };
-            wavefront::tile::write_tile_exr(&job.output, &info, film)
+            crate::tile::write_tile_exr(&job.output, &info, film)
                 .with_context(|| format!("cannot write tile {}", job.output.display()))
         }
         Some(bounds) if is_png => {

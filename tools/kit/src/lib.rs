@@ -8,6 +8,7 @@
 //! measures against them side by side.
 
 pub mod bench;
+pub mod fuzz;
 pub mod meshes;
 pub mod oracle;
 pub mod report;

@@ -13,10 +13,10 @@ use std::fmt;
 use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
-use crate::error::OutputError;
-use crate::output::ImageMeta;
-use crate::region::Region;
-use crate::scene::{Scene, TreeSource};
+use wavefront::error::OutputError;
+use wavefront::output::ImageMeta;
+use wavefront::region::Region;
+use wavefront::scene::{Scene, TreeSource};
 
 /// Text chunk holding the tile's region of the full image, `x0,x1,y0,y1`.
 pub const BOUNDS_KEY: &str = "wavefront:bounds";
@@ -162,7 +162,7 @@ impl Merged {
     /// Writes the merged image: an EXR for EXR tiles, else PNG or PPM by `path`'s extension.
     /// Mixing (EXR tiles into a `.png`, or the reverse) is an error naming `path`.
     pub fn save(&self, path: &Path) -> Result<(), OutputError> {
-        let exr = crate::output::is_exr(path);
+        let exr = wavefront::output::is_exr(path);
         if exr != self.hdr {
             return Err(OutputError::Io {
                 file: path.to_path_buf(),
@@ -174,7 +174,7 @@ impl Merged {
             });
         }
         if self.hdr {
-            let film = crate::film::Film {
+            let film = wavefront::film::Film {
                 width: self.width,
                 height: self.height,
                 pixels: bytemuck::cast_slice::<u8, [f32; 3]>(&self.rgb)
@@ -182,9 +182,9 @@ impl Merged {
                     .map(|&p| p.into())
                     .collect(),
             };
-            crate::output::write_exr(path, &film)
+            wavefront::output::write_exr(path, &film)
         } else {
-            crate::output::write_rgb8(
+            wavefront::output::write_rgb8(
                 path,
                 (self.width, self.height),
                 &ImageMeta::default(),
@@ -256,7 +256,7 @@ pub fn write_tile(path: &Path, info: &TileInfo, rgb: &[u8]) -> Result<(), Output
 }
 
 /// 8-bit RGB as a PNG file with `tEXt` chunks, through the one image writer
-/// ([`crate::output::write_rgb8`]: atomic, the same encoder as every render).
+/// ([`wavefront::output::write_rgb8`]: atomic, the same encoder as every render).
 fn write_png_with_text(
     path: &Path,
     size: (u32, u32),
@@ -269,14 +269,14 @@ fn write_png_with_text(
             .map(|(k, v)| ((*k).to_owned(), v.clone()))
             .collect(),
     };
-    crate::output::write_rgb8(path, size, &meta, rgb)
+    wavefront::output::write_rgb8(path, size, &meta, rgb)
 }
 
 /// Writes an EXR tile: the region's linear film with `info` as string attributes.
 pub fn write_tile_exr(
     path: &Path,
     info: &TileInfo,
-    film: &crate::film::Film,
+    film: &wavefront::film::Film,
 ) -> Result<(), OutputError> {
     let meta = ImageMeta {
         text: info
@@ -285,14 +285,14 @@ pub fn write_tile_exr(
             .map(|(k, v)| ((*k).to_owned(), v.clone()))
             .collect(),
     };
-    crate::output::write_exr_with(path, film, &meta)
+    wavefront::output::write_exr_with(path, film, &meta)
 }
 
 /// Reads a tile file (PNG with text chunks, or EXR with string attributes) and checks it against
 /// itself: its metadata parses, its bounds lie inside its image, and its pixels are the bounds'
 /// size.
 pub fn read_tile(path: &Path) -> Result<Tile, TileError> {
-    if crate::output::is_exr(path) {
+    if wavefront::output::is_exr(path) {
         return read_exr_tile(path);
     }
     let unreadable = |message: String| TileError::Unreadable {
@@ -379,7 +379,7 @@ fn tile_info(
 
 /// [`read_tile`] for an EXR tile.
 fn read_exr_tile(path: &Path) -> Result<Tile, TileError> {
-    let image = crate::output::read_exr(path).map_err(|message| TileError::Unreadable {
+    let image = wavefront::output::read_exr(path).map_err(|message| TileError::Unreadable {
         file: path.to_path_buf(),
         message,
     })?;
@@ -533,6 +533,8 @@ fn first_gap(tiles: &[Tile], width: u32, height: u32) -> Region {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use wavefront_kit::fuzz::fuzz;
+    use wavefront_kit::testkit::Scratch;
 
     fn tile(name: &str, bounds: &str, fingerprint: &str) -> Tile {
         let bounds: Region = bounds.parse().unwrap();
@@ -627,7 +629,7 @@ mod tests {
         assert_eq!((back.info, back.rgb), (t.info.clone(), t.rgb.clone()));
         // A plain PNG is not a tile; garbage is unreadable; both name the file.
         let plain = dir.join("plain.png");
-        crate::output::save_rgb8(&plain, 3, 2, &t.rgb).unwrap();
+        wavefront::output::save_rgb8(&plain, 3, 2, &t.rgb).unwrap();
         let e = read_tile(&plain).unwrap_err().to_string();
         assert!(e.contains("plain.png: not a wavefront tile"), "{e}");
         let junk = dir.join("junk.png");
@@ -654,7 +656,7 @@ mod tests {
         let whole: Vec<glam::Vec3> = (0..15)
             .map(|i| glam::Vec3::new(i as f32 * 0.37, -(i as f32), 1e3 + i as f32))
             .collect();
-        let band = |y0: u32, y1: u32| crate::film::Film {
+        let band = |y0: u32, y1: u32| wavefront::film::Film {
             width: 5,
             height: y1 - y0,
             pixels: whole[(y0 * 5) as usize..(y1 * 5) as usize].to_vec(),
@@ -681,7 +683,7 @@ mod tests {
         let merged = merge_tiles(&tiles).unwrap();
         let out = dir.join("whole.exr");
         merged.save(&out).unwrap();
-        let image = crate::output::read_exr(&out).unwrap();
+        let image = wavefront::output::read_exr(&out).unwrap();
         assert_eq!(image.size, (5, 3));
         assert!(
             image.pixels == whole,
@@ -689,7 +691,7 @@ mod tests {
         );
         // EXR tiles into a PNG is an error naming the output; nothing is written.
         let png = dir.join("whole.png");
-        let e = crate::error::chain(&merged.save(&png).unwrap_err());
+        let e = wavefront::error::chain(&merged.save(&png).unwrap_err());
         assert!(e.contains("whole.png") && e.contains(".exr"), "{e}");
         assert!(!png.exists());
         let _ = std::fs::remove_dir_all(&dir);
@@ -697,7 +699,7 @@ mod tests {
 
     #[test]
     fn the_fingerprint_follows_pixels_not_paths_or_names() {
-        let scene = crate::scene::builtin::spheres();
+        let scene = wavefront::scene::builtin::spheres();
         let src = SourceDigest::of(&scene).unwrap();
         let fp = Fingerprint::of(&scene, src, None);
         assert_eq!(fp.0.len(), 32);
@@ -716,5 +718,60 @@ mod tests {
             fp,
             "mesh bytes count"
         );
+    }
+
+    // Fuzzed tiles (the harness of tests/fuzz.rs): every mutation reads valid or fails naming the file.
+    /// A 4 × 2 tile of a 4 × 4 image, written as `name`.
+    fn tile_bytes(dir: &Scratch, name: &str) -> (PathBuf, Vec<u8>) {
+        let info = TileInfo {
+            bounds: wavefront::region::Region {
+                x0: 0,
+                x1: 4,
+                y0: 0,
+                y1: 2,
+            },
+            image: (4, 4),
+            fingerprint: Fingerprint("0123456789abcdef".into()),
+        };
+        let path = dir.join(name);
+        if name.ends_with(".exr") {
+            let mut film = wavefront::Film::new(4, 2);
+            film.pixels[3] = glam::Vec3::ONE;
+            write_tile_exr(&path, &info, &film).unwrap();
+        } else {
+            let rgb: Vec<u8> = (0..4 * 2 * 3).map(|i| i as u8 * 9).collect();
+            write_tile(&path, &info, &rgb).unwrap();
+        }
+        let bytes = std::fs::read(&path).unwrap();
+        (path, bytes)
+    }
+
+    fn fuzz_tiles(name: &'static str) {
+        let dir = Scratch::new(&format!("fuzz-{name}"));
+        let (path, valid) = tile_bytes(&dir, name);
+        fuzz(name, &valid, |bytes| {
+            std::fs::write(&path, bytes).unwrap();
+            match read_tile(&path) {
+                Ok(tile) => {
+                    let b = tile.info.bounds;
+                    assert!(b.x0 < b.x1 && b.y0 < b.y1);
+                    assert!(b.x1 <= tile.info.image.0 && b.y1 <= tile.info.image.1);
+                }
+                Err(e) => {
+                    let e = wavefront::error::chain(&e);
+                    assert!(e.contains(name), "error does not name {name}: {e}");
+                }
+            }
+        });
+    }
+
+    #[test]
+    fn fuzzed_png_tiles_are_read_valid_or_rejected() {
+        fuzz_tiles("tile.png");
+    }
+
+    #[test]
+    fn fuzzed_exr_tiles_are_read_valid_or_rejected() {
+        fuzz_tiles("tile.exr");
     }
 }
