@@ -17,6 +17,7 @@
 //! specular evaluation without `ks > 0`, no kD tree without a mesh, no shading at all for a hit mask.
 
 pub mod observer;
+pub mod passes;
 pub mod stage;
 pub mod stats;
 
@@ -47,6 +48,7 @@ use crate::wave::Wave;
 use crate::world::World;
 use observer::RunLog;
 pub use observer::{Observer, Progress, Queues, StageRun};
+pub use passes::shadow_passes;
 pub use stage::Stage;
 pub use stats::Stats;
 
@@ -125,7 +127,7 @@ impl Pipeline {
         self.depths.iter().any(|d| d.stages.contains(&stage))
     }
 
-    /// Lights reached through shadow rays, whose passes [`ShadowPass::plan`] lays out: all of
+    /// Lights reached through shadow rays, whose passes [`shadow_passes`] lays out: all of
     /// `world`'s when shadows are traced, none when they are off or for the hit mask.
     pub fn traced_lights(&self, world: &World) -> usize {
         if self.shade.shadows && !self.mask {
@@ -515,7 +517,7 @@ fn trace_wave(
     observer: &mut dyn Observer,
 ) {
     ws.samples.reset(wave.len());
-    'depths: for plan in &pipeline.depths {
+    for plan in &pipeline.depths {
         let mut call = |stage, pass: &ShadowPass, ws: &mut WaveQueues| {
             observer.before(stage, plan.depth, &ws.queues(wave));
             let start = Instant::now();
@@ -532,26 +534,27 @@ fn trace_wave(
             observer.after(&run, &ws.queues(wave));
             observer.stage_done(&run);
         };
-        for &stage in &plan.stages {
-            match stage {
-                // Every ray of the previous depth missed or stopped.
-                Stage::Intersect if ws.rays.is_empty() => break 'depths,
-                // Direct light, a bounded pass at a time: shade spawns the shadow rays of a
-                // block of hits × lights and shadow traces them before the next block.
-                Stage::Shade => {
-                    let shadow = plan.stages.contains(&Stage::Shadow);
-                    let passes =
-                        ShadowPass::plan(ws.hits.len(), traced_lights, options.shadow_rows);
-                    for pass in passes {
-                        call(Stage::Shade, &pass, ws);
-                        if shadow {
-                            call(Stage::Shadow, &pass, ws);
-                        }
-                    }
-                }
-                Stage::Shadow => {} // run with each shade pass, above
-                stage => call(stage, &ShadowPass::default(), ws),
+        // The stages of one depth, in the order `plan.stages` lists them.
+        let runs = |stage| plan.stages.contains(&stage);
+        let whole = ShadowPass::default();
+        if runs(Stage::Generate) {
+            call(Stage::Generate, &whole, ws);
+        }
+        if ws.rays.is_empty() {
+            break; // every ray of the previous depth missed or stopped
+        }
+        call(Stage::Intersect, &whole, ws);
+        // Direct light, a bounded pass at a time: shade spawns the shadow rays of a block of
+        // hits × lights (the first pass also shades the hits and adds what they emit), and
+        // shadow traces them before the next block.
+        for pass in shadow_passes(ws.hits.len(), traced_lights, options.shadow_rows) {
+            call(Stage::Shade, &pass, ws);
+            if runs(Stage::Shadow) {
+                call(Stage::Shadow, &pass, ws);
             }
+        }
+        if runs(Stage::Reflect) {
+            call(Stage::Reflect, &whole, ws);
         }
         // The next depth traces the reflections this one spawned.
         std::mem::swap(&mut ws.rays, &mut ws.next);

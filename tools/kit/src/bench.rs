@@ -25,7 +25,7 @@ use wavefront::scene::Scene;
 use wavefront::schedule::{
     self, Observer, Pipeline, Queues, RenderOptions, Stage, StageRun, WaveQueues, render_observed,
 };
-use wavefront::stages::shade::{ShadedHits, ShadowPass, ShadowRays};
+use wavefront::stages::shade::{ShadedHits, ShadowRays};
 use wavefront::wave::Wave;
 use wavefront::world::World;
 
@@ -245,7 +245,7 @@ impl<'a> StageBench<'a> {
         // The depth's first shade → shadow pass, as the schedule plans it.
         let lights = self.snapshot.pipeline.traced_lights(self.world);
         let hits = self.snapshot.depth(depth).map_or(0, |d| d.hits.len());
-        let pass = ShadowPass::plan(hits, lights, RenderOptions::default().shadow_rows)
+        let pass = schedule::shadow_passes(hits, lights, RenderOptions::default().shadow_rows)
             .next()
             .unwrap_or_default();
         schedule::run_stage(
