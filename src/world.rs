@@ -121,11 +121,12 @@ impl Triangles {
     /// The merged mesh in the frame centred on it — where `kdtree build` and the tree cache
     /// build and tree files are checked — and that frame (for `bench`'s tree-check figure).
     pub fn centred_mesh(&self) -> Result<(RenderFrame, TriangleMesh), MeshError> {
-        centred_mesh(
+        let (_, frame, mesh) = centred_mesh(
             &self.world_positions,
             &self.mesh.indices,
             std::path::Path::new("the merged mesh"),
-        )
+        )?;
+        Ok((frame, mesh))
     }
 
     /// Where the tree came from.
@@ -727,14 +728,7 @@ pub fn check_tree_file(
     positions: &[[f64; 3]],
     indices: &[[u32; 3]],
 ) -> Result<(KdTree, TriangleMesh), LoadError> {
-    let merged = ObjMesh {
-        path: path.to_path_buf(),
-        positions: positions.to_vec(),
-        indices: indices.to_vec(),
-        ..ObjMesh::default()
-    };
-    let centred = RenderFrame::centered_on(&merged);
-    let mesh = merged.to_frame(centred.origin)?;
+    let (merged, centred, mesh) = centred_mesh(positions, indices, path)?;
     let tree = KdTree::load_text_in(path, mesh.len(), &centred)?;
     let first = match tree.validate_file(&mesh, path) {
         Ok(()) => return Ok((tree, mesh)),
@@ -750,13 +744,13 @@ pub fn check_tree_file(
     Err(first.into())
 }
 
-/// The mesh of `positions` (world coordinates) and `indices` in the frame centred on it, and
-/// that frame. `path` names the mesh in errors.
+/// The mesh of `positions` (world coordinates) and `indices` as one [`ObjMesh`] (`path` names
+/// it in errors), the frame centred on it, and the mesh in that frame.
 fn centred_mesh(
     positions: &[[f64; 3]],
     indices: &[[u32; 3]],
     path: &std::path::Path,
-) -> Result<(RenderFrame, TriangleMesh), MeshError> {
+) -> Result<(ObjMesh, RenderFrame, TriangleMesh), MeshError> {
     let merged = ObjMesh {
         path: path.to_path_buf(),
         positions: positions.to_vec(),
@@ -765,16 +759,27 @@ fn centred_mesh(
     };
     let centred = RenderFrame::centered_on(&merged);
     let mesh = merged.to_frame(centred.origin)?;
-    Ok((centred, mesh))
+    Ok((merged, centred, mesh))
 }
 
 /// Before a mesh is read: it is there ([`crate::scene::builtin::missing_scene_mesh`]) and its
 /// extension names a format this build reads.
 fn check_mesh_path(scene: &Scene, m: &crate::scene::MeshRef) -> Result<(), LoadError> {
-    if crate::input::is_absent(&m.path) {
-        return Err(crate::scene::builtin::missing_scene_mesh(scene, &m.path).into());
+    check_mesh_file(&m.path, Some(scene))
+}
+
+/// The one check before a mesh file is read (a scene's mesh, `kdtree build`, `kdtree check`):
+/// it is there — else the missing-mesh error, which says where to put Sibenik for `scene`'s
+/// built-in Sibenik scenes — and its extension names a format this build reads.
+pub fn check_mesh_file(path: &std::path::Path, scene: Option<&Scene>) -> Result<(), LoadError> {
+    if crate::input::is_absent(path) {
+        return Err(match scene {
+            Some(scene) => crate::scene::builtin::missing_scene_mesh(scene, path),
+            None => crate::scene::builtin::missing_mesh(path),
+        }
+        .into());
     }
-    crate::mesh::check_format(&m.path)?;
+    crate::mesh::check_format(path)?;
     Ok(())
 }
 

@@ -652,10 +652,7 @@ fn build_tree(
     json: bool,
     cache: &CacheArgs,
 ) -> Result<()> {
-    if wavefront::input::is_absent(mesh) {
-        return Err(wavefront::scene::builtin::missing_mesh(mesh).into());
-    }
-    wavefront::mesh::check_format(mesh)?;
+    wavefront::world::check_mesh_file(mesh, None)?;
     let start = Instant::now();
     // The first MiB checked as it streams: a file that is not OBJ fails before it is read whole.
     wavefront::mesh::check_file(mesh, Some(1 << 20))?;
@@ -767,10 +764,7 @@ fn run_kdtree(cmd: KdtreeCommand) -> Result<()> {
             pool.install(|| build_tree(&mesh, method, &output, json, &cache))
         }
         KdtreeCommand::Check { tree, mesh } => {
-            if wavefront::input::is_absent(&mesh) {
-                return Err(wavefront::scene::builtin::missing_mesh(&mesh).into());
-            }
-            wavefront::mesh::check_format(&mesh)?;
+            wavefront::world::check_mesh_file(&mesh, None)?;
             let obj = ObjMesh::read(&mesh)?;
             // As `render --kdtree FILE` checks it.
             let (t, m) = wavefront::world::check_tree_file(&tree, &obj.positions, &obj.indices)?;
