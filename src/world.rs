@@ -1,8 +1,6 @@
 //! [`World`]: a scene's geometry made ready to trace — analytic primitives, the merged triangle
 //! mesh and its kD tree — with the per-ray queries the intersect and shadow stages call.
 
-use std::time::Instant;
-
 use glam::Vec3;
 
 use crate::accel::kdtree::TreeError;
@@ -12,9 +10,9 @@ use crate::frame::{Light, Plane, RenderFrame, Sphere};
 use crate::geometry::offset::{gamma, offset_fixed, offset_ray_origin};
 use crate::geometry::{plane, sphere, triangle};
 use crate::mesh::TriangleMesh;
-use crate::mesh::{MeshError, NO_MATERIAL, ObjMesh, ObjRead};
+use crate::mesh::{MeshError, ObjMesh};
 use crate::queue::PrimId;
-use crate::scene::{Material, Normals, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
+use crate::scene::{Material, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
 
 mod analytic;
 mod cached;
@@ -621,99 +619,6 @@ impl World {
             shading,
         }
     }
-}
-
-fn load_triangles(
-    scene: &Scene,
-    frame: &RenderFrame,
-) -> Result<(Triangles, SetupTimes), LoadError> {
-    let start = Instant::now();
-    let mut mesh = TriangleMesh::default();
-    let mut world_positions = vec![];
-    let mut material_ranges: Vec<(u32, u32)> = Vec::with_capacity(scene.meshes.len());
-    let smooth = scene.meshes.iter().any(|m| m.normals == Normals::Vertex);
-    let mut vertex_normals = vec![];
-    for m in &scene.meshes {
-        check_mesh_path(scene, m)?;
-        let what = ObjRead {
-            normals: m.normals == Normals::Vertex,
-            materials: m.mtl.is_some(),
-        };
-        let obj = ObjMesh::read_with(&m.path, what)?;
-        check_not_empty(m, &obj)?;
-        let part = obj.to_frame(frame.origin)?;
-        world_positions.extend_from_slice(&obj.positions);
-        let first = mesh.len() as u32;
-        match &m.mtl {
-            None => material_ranges.push((first, m.material)),
-            Some(binding) => {
-                let fallback = binding.fallback.unwrap_or(m.material);
-                // A file without per-face materials (a PLY put in by `--mesh`): the fallback.
-                if obj.face_materials.len() != obj.len() {
-                    material_ranges.push((first, fallback));
-                }
-                for (k, &f) in obj.face_materials.iter().enumerate() {
-                    let material = if f == NO_MATERIAL {
-                        fallback
-                    } else {
-                        binding.first + f
-                    };
-                    if material_ranges
-                        .last()
-                        .is_none_or(|&(_, last)| last != material)
-                    {
-                        material_ranges.push((first + k as u32, material));
-                    }
-                }
-            }
-        }
-        if smooth {
-            if what.normals {
-                vertex_normals.extend(obj.normals_f32());
-            } else {
-                vertex_normals.resize(vertex_normals.len() + obj.positions.len(), [0.0; 3]);
-            }
-        }
-        let base = mesh.vertices.len() as u32;
-        mesh.vertices.extend_from_slice(&part.vertices);
-        mesh.indices
-            .extend(part.indices.iter().map(|t| t.map(|i| i + base)));
-    }
-    let load_seconds = start.elapsed().as_secs_f64();
-
-    let source = tree_source(scene)?;
-    let start = Instant::now();
-    let tree = match &source {
-        TreeSource::Sah => KdTree::build(&mesh, BuildMethod::Sah),
-        TreeSource::Midpoint => KdTree::build(&mesh, BuildMethod::Midpoint),
-        TreeSource::File(path) => load_tree_file(path, &world_positions, &mesh, frame)?,
-    };
-    let tree = KdAccel::new(tree, &mesh);
-    let times = SetupTimes {
-        load_seconds,
-        tree_seconds: start.elapsed().as_secs_f64(),
-    };
-    let triangles = Triangles {
-        mesh,
-        world_positions,
-        vertex_normals,
-        material_ranges,
-        tree,
-        source,
-    };
-    Ok((triangles, times))
-}
-
-/// A tree file for the merged mesh (`world_positions`, and `mesh` in `frame`), checked as
-/// `kdtree check` checks it ([`check_tree_file`]), then read into `frame` for tracing.
-fn load_tree_file(
-    path: &std::path::Path,
-    world_positions: &[[f64; 3]],
-    mesh: &TriangleMesh,
-    frame: &RenderFrame,
-) -> Result<KdTree, LoadError> {
-    check_tree_file(path, world_positions, &mesh.indices)?;
-    Ok(KdTree::load_text_in(path, mesh.len(), frame)?)
 }
 
 /// Checks the tree file `path` against the mesh of `positions` (world coordinates) and

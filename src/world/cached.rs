@@ -10,13 +10,11 @@
 use std::time::Instant;
 
 use super::LoadError;
-use super::{
-    SetupTimes, Triangles, World, check_mesh_path, check_not_empty, load_triangles, tree_source,
-};
+use super::{SetupTimes, Triangles, World, check_mesh_path, check_not_empty, tree_source};
 use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
 use crate::cache::{CacheKey, CachedTree, TreeCache};
 use crate::frame::RenderFrame;
-use crate::mesh::{MeshError, ObjMesh, TriangleMesh};
+use crate::mesh::{MeshError, NO_MATERIAL, ObjMesh, ObjRead, TriangleMesh};
 use crate::scene::{Normals, Scene, TreeSource};
 
 /// Bytes of an OBJ file [`crate::mesh::check_file`] checks before the file is read whole.
@@ -63,7 +61,17 @@ impl World {
         Ok((world, setup))
     }
 
-    /// [`World::load_cached`] without the scene's own warnings.
+    /// [`World::load_cached`] without the scene's own warnings: the one load path of every
+    /// scene with meshes (any format, with or without MTL materials and vertex normals, any tree
+    /// source, with or without a cache).
+    ///
+    /// 1. Every mesh file is checked and read as bytes (hashed with its sources for the cache).
+    /// 2. A built tree (SAH or midpoint) is looked up in the cache: a hit brings the merged
+    ///    mesh and tree, and the files are parsed only if MTL materials or vertex normals need
+    ///    more than positions and faces.
+    /// 3. Otherwise the files are parsed and merged; the tree is built in the frame centred on
+    ///    the merged mesh and stored, or a tree file is checked ([`super::check_tree_file`]).
+    /// 4. Mesh and tree move to the camera's frame ([`triangles_in`]).
     fn load_cached_quietly(
         scene: &Scene,
         cache: Option<&TreeCache>,
@@ -73,23 +81,6 @@ impl World {
             return Ok((World::analytic(scene, frame, None), Setup::default()));
         }
         let source = tree_source(scene)?;
-        // Tree files, MTL materials and vertex normals take the full (tobj) path, uncached.
-        let uncached = scene
-            .meshes
-            .iter()
-            .any(|m| m.mtl.is_some() || m.normals == Normals::Vertex);
-        let method = match source {
-            TreeSource::Sah if !uncached => BuildMethod::Sah,
-            TreeSource::Midpoint if !uncached => BuildMethod::Midpoint,
-            _ => {
-                let (t, times) = load_triangles(scene, &frame)?;
-                let setup = Setup {
-                    times,
-                    ..Setup::default()
-                };
-                return Ok((World::analytic(scene, frame, Some(t)), setup));
-            }
-        };
         let start = Instant::now();
         let mut files = Vec::with_capacity(scene.meshes.len());
         // Besides each file's bytes: what else its key is made of (format tags, glTF buffers).
@@ -109,8 +100,12 @@ impl World {
             files.push(bytes);
         }
         let mut setup = Setup::default();
-        let mut cached = None;
-        let key = cache.map(|c| {
+        let method = match &source {
+            TreeSource::Sah => Some(BuildMethod::Sah),
+            TreeSource::Midpoint => Some(BuildMethod::Midpoint),
+            TreeSource::File(_) => None,
+        };
+        let key = cache.zip(method).map(|(c, method)| {
             let mut slices: Vec<&[u8]> = Vec::with_capacity(files.len());
             for (f, e) in files.iter().zip(&extra) {
                 slices.extend(e.first().map(Vec::as_slice));
@@ -121,6 +116,7 @@ impl World {
         });
         let load_seconds = start.elapsed().as_secs_f64();
         let tree_start = Instant::now();
+        let mut cached = None;
         if let Some((c, key)) = key {
             match c.load(key) {
                 Ok(Some(e)) if e.mesh_triangles.len() == scene.meshes.len() => {
@@ -137,15 +133,27 @@ impl World {
                     .push(format!("{}; rebuilding it", crate::error::chain(&e))),
             }
         }
-        let mut parse_seconds = 0.0;
-        let entry = match cached {
-            Some(e) => e,
-            None => {
-                let parse_start = Instant::now();
-                let merged = merge(scene, &files)?;
-                drop(files);
-                parse_seconds = parse_start.elapsed().as_secs_f64();
-                let entry = build_entry(merged, method)?;
+        // Parsed when there is no entry, or when faces need more than positions (MTL materials,
+        // vertex normals): the merged mesh, each mesh's triangle count and what else was read.
+        let rich = scene
+            .meshes
+            .iter()
+            .any(|m| m.mtl.is_some() || m.normals == Normals::Vertex);
+        let parse_start = Instant::now();
+        let parsed = match (&cached, rich) {
+            (Some(_), false) => None,
+            _ => Some(parse(scene, &files)?),
+        };
+        drop(files);
+        let parse_seconds = parse_start.elapsed().as_secs_f64();
+        let entry = match (cached, &parsed) {
+            (Some(e), _) => e,
+            (None, Some(parsed)) => {
+                let entry = match (&source, method) {
+                    (TreeSource::File(path), _) => tree_file_entry(path, parsed, &frame)?,
+                    (_, Some(method)) => build_entry(parsed, method)?,
+                    (_, None) => unreachable!("a tree source without a file is built"),
+                };
                 if let Some((c, key)) = key {
                     match c.store(key, &entry) {
                         Ok(_) => setup.cache = CacheStatus::Stored,
@@ -157,25 +165,79 @@ impl World {
                 }
                 entry
             }
+            (None, None) => unreachable!("a world without a cache entry parses its meshes"),
         };
-        let triangles = triangles_in(scene, entry, &frame)?;
+        let triangles = triangles_in(scene, entry, parsed.as_ref(), &frame)?;
         setup.times.load_seconds = load_seconds + parse_seconds;
         setup.times.tree_seconds = tree_start.elapsed().as_secs_f64() - parse_seconds;
         Ok((World::analytic(scene, frame, Some(triangles)), setup))
     }
 }
 
-/// Parses every mesh and merges them (meshes one after another), with each mesh's triangle
-/// count.
-fn merge(scene: &Scene, files: &[Vec<u8>]) -> Result<(ObjMesh, Vec<u64>), LoadError> {
+/// The scene's meshes parsed and merged (meshes one after another, in scene order).
+struct Parsed {
+    /// Every mesh's positions (world coordinates) and faces.
+    merged: ObjMesh,
+    /// Triangles of each mesh.
+    counts: Vec<u64>,
+    /// Material of each run of triangles: `(first triangle, scene material)`.
+    material_ranges: Vec<(u32, u32)>,
+    /// Shading normal of each vertex (zero where its mesh shades with geometric normals); empty
+    /// when no mesh uses vertex normals.
+    vertex_normals: Vec<[f32; 3]>,
+}
+
+/// Parses every mesh (its bytes `files`) with what its `[[mesh]]` asks for and merges them.
+fn parse(scene: &Scene, files: &[Vec<u8>]) -> Result<Parsed, LoadError> {
     let mut merged = ObjMesh {
         path: scene.meshes[0].path.clone(),
         ..ObjMesh::default()
     };
     let mut counts = Vec::with_capacity(files.len());
+    let mut material_ranges: Vec<(u32, u32)> = Vec::with_capacity(files.len());
+    let smooth = scene.meshes.iter().any(|m| m.normals == Normals::Vertex);
+    let mut vertex_normals = vec![];
     for (m, bytes) in scene.meshes.iter().zip(files) {
-        let obj = crate::mesh::obj_fast::read_bytes(&m.path, bytes)?;
+        let what = ObjRead {
+            normals: m.normals == Normals::Vertex,
+            materials: m.mtl.is_some(),
+        };
+        let obj = crate::mesh::read_bytes(&m.path, bytes, what, true)?;
         check_not_empty(m, &obj)?;
+        let first = merged.indices.len() as u32;
+        let mut push = |material: u32, at: u32| {
+            if material_ranges
+                .last()
+                .is_none_or(|&(_, last)| last != material)
+            {
+                material_ranges.push((at, material));
+            }
+        };
+        match &m.mtl {
+            None => push(m.material, first),
+            Some(binding) => {
+                let fallback = binding.fallback.unwrap_or(m.material);
+                // A file without per-face materials (a PLY put in by `--mesh`): the fallback.
+                if obj.face_materials.len() != obj.len() {
+                    push(fallback, first);
+                }
+                for (k, &f) in obj.face_materials.iter().enumerate() {
+                    let material = if f == NO_MATERIAL {
+                        fallback
+                    } else {
+                        binding.first + f
+                    };
+                    push(material, first + k as u32);
+                }
+            }
+        }
+        if smooth {
+            if what.normals {
+                vertex_normals.extend(obj.normals_f32());
+            } else {
+                vertex_normals.resize(vertex_normals.len() + obj.positions.len(), [0.0; 3]);
+            }
+        }
         let base = merged.positions.len() as u32;
         merged.positions.extend_from_slice(&obj.positions);
         merged
@@ -183,53 +245,87 @@ fn merge(scene: &Scene, files: &[Vec<u8>]) -> Result<(ObjMesh, Vec<u64>), LoadEr
             .extend(obj.indices.iter().map(|t| t.map(|i| i + base)));
         counts.push(obj.indices.len() as u64);
     }
-    Ok((merged, counts))
+    Ok(Parsed {
+        merged,
+        counts,
+        material_ranges,
+        vertex_normals,
+    })
 }
 
-/// Builds the tree over a merged mesh in the frame centred on it.
-pub fn build_entry(
-    (mesh, mesh_triangles): (ObjMesh, Vec<u64>),
-    method: BuildMethod,
-) -> Result<CachedTree, MeshError> {
-    let centred = RenderFrame::centered_on(&mesh);
+/// The tree file `path` for the parsed mesh, checked as `kdtree check` checks it
+/// ([`super::check_tree_file`]), then read into `frame` (where it is traced).
+fn tree_file_entry(
+    path: &std::path::Path,
+    parsed: &Parsed,
+    frame: &RenderFrame,
+) -> Result<CachedTree, LoadError> {
+    let (positions, indices) = (&parsed.merged.positions, &parsed.merged.indices);
+    super::check_tree_file(path, positions, indices)?;
+    Ok(CachedTree {
+        origin: frame.origin,
+        positions: positions.clone(),
+        indices: indices.clone(),
+        mesh_triangles: parsed.counts.clone(),
+        tree: KdTree::load_text_in(path, indices.len(), frame)?,
+    })
+}
+
+/// Builds the tree over the parsed, merged mesh in the frame centred on it.
+fn build_entry(parsed: &Parsed, method: BuildMethod) -> Result<CachedTree, MeshError> {
+    let mesh = &parsed.merged;
+    let centred = RenderFrame::centered_on(mesh);
     let tree = KdTree::build(&mesh.to_frame(centred.origin)?, method);
     Ok(CachedTree {
         origin: centred.origin,
-        positions: mesh.positions,
-        indices: mesh.indices,
-        mesh_triangles,
+        positions: mesh.positions.clone(),
+        indices: mesh.indices.clone(),
+        mesh_triangles: parsed.counts.clone(),
         tree,
     })
 }
 
-/// The entry's mesh and tree in `frame`, with the scene's materials.
+/// The entry's mesh and tree in `frame`, with the scene's materials: per mesh, or as `parsed`
+/// found them (MTL materials, vertex normals).
 fn triangles_in(
     scene: &Scene,
     entry: CachedTree,
+    parsed: Option<&Parsed>,
     frame: &RenderFrame,
 ) -> Result<Triangles, LoadError> {
     let vertices =
         crate::mesh::frame_vertices(&scene.meshes[0].path, &entry.positions, frame.origin)?;
     let mesh = TriangleMesh::new(vertices, entry.indices);
-    let mut first = 0u64;
-    let material_ranges = scene
-        .meshes
-        .iter()
-        .zip(&entry.mesh_triangles)
-        .map(|(m, &n)| {
-            let range = (first as u32, m.material);
-            first += n;
-            range
-        })
-        .collect();
-    let tree = entry
-        .tree
-        .into_reframed(&RenderFrame::at(entry.origin), frame);
+    let (material_ranges, vertex_normals) = match parsed {
+        Some(p) => (p.material_ranges.clone(), p.vertex_normals.clone()),
+        None => {
+            let mut first = 0u64;
+            let ranges = scene
+                .meshes
+                .iter()
+                .zip(&entry.mesh_triangles)
+                .map(|(m, &n)| {
+                    let range = (first as u32, m.material);
+                    first += n;
+                    range
+                })
+                .collect();
+            (ranges, vec![])
+        }
+    };
+    // A tree file is read in the camera's frame already; a built tree moves there.
+    let tree = if entry.origin == frame.origin {
+        entry.tree
+    } else {
+        entry
+            .tree
+            .into_reframed(&RenderFrame::at(entry.origin), frame)
+    };
     let tree = KdAccel::new(tree, &mesh);
     Ok(Triangles {
         mesh,
         world_positions: entry.positions,
-        vertex_normals: vec![],
+        vertex_normals,
         material_ranges,
         tree,
         source: scene.meshes[0].kdtree.clone(),
