@@ -38,6 +38,13 @@
 //! every Sibenik shadow ray and on rays grazing its edges, check it). A bundle stops when all its
 //! lanes are occluded.
 //!
+//! **Shadow cache.** Each light keeps the last triangle that occluded one of its lanes (Haines &
+//! Greenberg); its next bundle — a neighbour along the Morton curve — tests it first against
+//! every entered lane with the same exact test, and walks the tree only for the lanes it leaves
+//! unoccluded (none: no walk). A lane hit by it is occluded by the single ray's definition, so
+//! the cache changes work, never an answer (on Sibenik's shadow rays it answers about 8 % of the
+//! lanes, two thirds of the occluded ones).
+//!
 //! **Lanes.** The lane code is written once over [`Wide`] ([`crate::simd`]'s `wide`: one
 //! instruction per operation, each with the scalar operation's semantics) and inlined into
 //! [`dispatch_wide`]'s per-level functions: 16 lanes with AVX-512, 8 with AVX2 and on the portable
@@ -490,7 +497,8 @@ impl<C: Count> BatchKernel<'_, C> {
             let cache = &mut cache[info.apex as usize % MAX_APEXES];
             let rows = &block[b * ROWS * w..(b + 1) * ROWS * w];
             let lanes = &lane_ray[b * w..(b + 1) * w];
-            let hit = accel.bundle::<V, C>(apex, info, rows, lanes, &rays, &mut stack, cache, count);
+            let hit =
+                accel.bundle::<V, C>(apex, info, rows, lanes, &rays, &mut stack, cache, count);
             for (l, &ray) in lanes.iter().enumerate().take(info.len as usize) {
                 if hit & (1 << l) != 0 {
                     out[ray as usize] = true;
