@@ -74,13 +74,7 @@ fn batched(
         .collect();
     let mut total = BundleCounts::default();
     for c in counts {
-        total.bundles += c.bundles;
-        total.lanes += c.lanes;
-        total.nodes += c.nodes;
-        total.leaves += c.leaves;
-        total.leaf_lanes += c.leaf_lanes;
-        total.tris += c.tris;
-        total.fallback += c.fallback;
+        total.add(&c);
     }
     (out, total)
 }
@@ -105,7 +99,8 @@ fn bundles_match_single_rays_on_every_sibenik_shadow_ray() {
             eprintln!(
                 "{level:?} chunk {chunk}: {n} rays, {occluded} occluded, {diff} differ; \
                  bundles {} lanes/bundle {:.1} nodes/bundle {:.1} leaves/bundle {:.1} \
-                 lanes/leaf {:.1} tris/bundle {:.1} fallback {}",
+                 lanes/leaf {:.1} tris/bundle {:.1} fallback {}; cached occluder: {} of {} \
+                 lanes, {} bundles whole",
                 c.bundles,
                 c.lanes as f64 / c.bundles as f64,
                 c.nodes as f64 / c.bundles as f64,
@@ -113,9 +108,17 @@ fn bundles_match_single_rays_on_every_sibenik_shadow_ray() {
                 c.leaf_lanes as f64 / c.leaves.max(1) as f64,
                 c.tris as f64 / c.bundles as f64,
                 c.fallback,
+                c.cache_hits,
+                c.lanes,
+                c.cache_done,
             );
             assert_eq!(diff, 0, "{level:?}, chunks of {chunk}");
             assert_eq!(c.fallback, 0, "every Sibenik shadow ray ends at the light");
+            // The shadow cache answers lanes (occluded ones only: the answers are checked
+            // above) and spares whole bundles their walk.
+            assert!(c.cache_tests > 0 && c.cache_done > 0, "{c:?}");
+            assert!(c.cache_hits > occluded as u64 / 4, "{c:?}");
+            assert!(c.cache_hits <= occluded as u64, "{c:?}");
         }
     }
 }

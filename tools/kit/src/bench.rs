@@ -426,6 +426,89 @@ pub struct Report {
     /// Spheres traced through a BVH and its node count, for worlds with more than
     /// [`wavefront::world::SPHERE_BVH_MIN`] spheres.
     pub sphere_bvh: Option<(usize, usize)>,
+    /// The depth-0 shadow rays traced by each occluded-query variant (mesh scenes).
+    pub shadow_variants: Vec<VariantWork>,
+}
+
+/// One traversal variant's work on the snapshot's depth-0 shadow rays.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VariantWork {
+    /// Variant label (`bundle`, `single`).
+    pub variant: String,
+    /// Rays traced.
+    pub rays: u64,
+    /// Work counts (light-rooted bundles only; `None` for the uncounted single-ray walk).
+    pub counts: Option<wavefront::accel::kdtree::BundleCounts>,
+    /// Best time over the bench's repeats, in seconds.
+    pub seconds: f64,
+}
+
+/// Times the depth-0 shadow rays `q` through the light-rooted bundles (in chunks of
+/// [`wavefront::accel::kdtree::KdAccel::OCCLUDED_BATCH`], as the shadow stage) and through the
+/// single-ray walk, on the current pool, and counts the bundles' work (one more, counted run at
+/// the CPU's SIMD level).
+fn shadow_variants(
+    tris: &wavefront::world::Triangles,
+    q: &ShadowQueue,
+    repeat: usize,
+) -> Vec<VariantWork> {
+    use rayon::prelude::*;
+    use wavefront::accel::kdtree::{BundleCounts, KdAccel};
+    let accel = KdAccel::new(tris.tree().clone(), tris.mesh());
+    let n = q.origin.len();
+    let chunk = KdAccel::OCCLUDED_BATCH;
+    let mut out = vec![false; n];
+    let best = |f: &mut dyn FnMut()| {
+        (0..repeat.max(1))
+            .map(|_| {
+                let t = Instant::now();
+                f();
+                t.elapsed().as_secs_f64()
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    let bundle = best(&mut || {
+        out.par_chunks_mut(chunk).enumerate().for_each(|(c, out)| {
+            let r = c * chunk..c * chunk + out.len();
+            accel.intersect_occluded_batch(
+                &q.origin[r.clone()],
+                &q.direction[r.clone()],
+                &q.t_max[r],
+                out,
+            );
+        })
+    });
+    let level = wavefront::simd::Level::current();
+    let mut counts = BundleCounts::default();
+    for (c, out) in out.chunks_mut(chunk).enumerate() {
+        let r = c * chunk..c * chunk + out.len();
+        counts.add(&accel.intersect_occluded_batch_counted(
+            level,
+            &q.origin[r.clone()],
+            &q.direction[r.clone()],
+            &q.t_max[r],
+            out,
+        ));
+    }
+    let single = best(&mut || {
+        out.par_iter_mut().enumerate().for_each(|(i, o)| {
+            *o = accel.intersect_occluded(q.origin[i], q.direction[i], q.t_max[i]);
+        })
+    });
+    vec![
+        VariantWork {
+            variant: "bundle".into(),
+            rays: n as u64,
+            counts: Some(counts),
+            seconds: bundle,
+        },
+        VariantWork {
+            variant: "single".into(),
+            rays: n as u64,
+            counts: None,
+            seconds: single,
+        },
+    ]
 }
 
 /// Queue traffic of a frame against the machine's measured memory bandwidth.
@@ -616,6 +699,35 @@ impl fmt::Display for Report {
                 b.seconds * 1e3
             )?;
         }
+        for v in &self.shadow_variants {
+            write!(
+                f,
+                "shadow rays, {:<6}: {} rays, {:.1} Mrays/s",
+                v.variant,
+                v.rays,
+                mrays_per_s(v.rays as usize, v.seconds)
+            )?;
+            if let Some(c) = &v.counts {
+                let per = |x: u64| x as f64 / (c.lanes.max(1)) as f64;
+                write!(
+                    f,
+                    "; {} bundles of {:.1} lanes, per bundled ray: {:.2} node steps, {:.2} leaves, \
+                     {:.2} triangle tests (each against a whole bundle: {:.1} per bundle); \
+                     cached occluder answered {:.1}% of lanes, {:.1}% of bundles whole; \
+                     {} rays through packets",
+                    c.bundles,
+                    c.lanes as f64 / c.bundles.max(1) as f64,
+                    per(c.nodes),
+                    per(c.leaves),
+                    per(c.tris),
+                    c.tris as f64 / c.bundles.max(1) as f64,
+                    100.0 * c.cache_hits as f64 / c.lanes.max(1) as f64,
+                    100.0 * c.cache_done as f64 / c.bundles.max(1) as f64,
+                    c.fallback
+                )?;
+            }
+            writeln!(f)?;
+        }
         for n in &self.notes {
             writeln!(f, "note: {n}")?;
         }
@@ -678,6 +790,10 @@ fn run_on_current_pool(scene: &Scene, config: BenchConfig) -> Result<Report, Ben
         report
             .stages
             .push(Record::new(&scene.name, stage, depth, threads, rays, s));
+    }
+    let shadows = bench.snapshot.depth(0).and_then(|d| d.shadows.as_ref());
+    if let (Some(tris), Some(q)) = (world.triangles(), shadows) {
+        report.shadow_variants = shadow_variants(tris, q, repeat);
     }
 
     // The frame as `render` traces it: no stage observer, so one wave per thread at once.

@@ -38,6 +38,13 @@
 //! every Sibenik shadow ray and on rays grazing its edges, check it). A bundle stops when all its
 //! lanes are occluded.
 //!
+//! **Shadow cache.** Each light keeps the last triangle that occluded one of its lanes (Haines &
+//! Greenberg); its next bundle — a neighbour along the Morton curve — tests it first against
+//! every entered lane with the same exact test, and walks the tree only for the lanes it leaves
+//! unoccluded (none: no walk). A lane hit by it is occluded by the single ray's definition, so
+//! the cache changes work, never an answer (on Sibenik's shadow rays it answers about 8 % of the
+//! lanes, two thirds of the occluded ones).
+//!
 //! **Lanes.** The lane code is written once over [`Wide`] ([`crate::simd`]'s `wide`: one
 //! instruction per operation, each with the scalar operation's semantics) and inlined into
 //! [`dispatch_wide`]'s per-level functions: 16 lanes with AVX-512, 8 with AVX2 and on the portable
@@ -138,6 +145,9 @@ pub(super) trait Count {
     fn tri(&mut self);
     /// A ray goes through the packet path instead.
     fn fallback(&mut self, rays: u32);
+    /// A bundle's `lanes` live lanes are tested against the cached occluder first, and `hit`
+    /// of them are occluded by it.
+    fn cached(&mut self, lanes: u32, hit: u32);
 }
 
 /// No counting.
@@ -154,6 +164,8 @@ impl Count for NoCount {
     fn tri(&mut self) {}
     #[inline(always)]
     fn fallback(&mut self, _: u32) {}
+    #[inline(always)]
+    fn cached(&mut self, _: u32, _: u32) {}
 }
 
 /// Counts of the work the light-rooted bundles of [`KdAccel::intersect_occluded_batch`] did,
@@ -174,6 +186,28 @@ pub struct BundleCounts {
     pub tris: u64,
     /// Rays that took the packet path.
     pub fallback: u64,
+    /// Bundles tested against their light's cached occluder before traversal.
+    pub cache_tests: u64,
+    /// Lanes found occluded by the cached occluder (no traversal for them).
+    pub cache_hits: u64,
+    /// Bundles all of whose lanes the cached occluder answered.
+    pub cache_done: u64,
+}
+
+impl BundleCounts {
+    /// Adds `o`'s counts to these.
+    pub fn add(&mut self, o: &BundleCounts) {
+        self.bundles += o.bundles;
+        self.lanes += o.lanes;
+        self.nodes += o.nodes;
+        self.leaves += o.leaves;
+        self.leaf_lanes += o.leaf_lanes;
+        self.tris += o.tris;
+        self.fallback += o.fallback;
+        self.cache_tests += o.cache_tests;
+        self.cache_hits += o.cache_hits;
+        self.cache_done += o.cache_done;
+    }
 }
 
 impl Count for BundleCounts {
@@ -193,6 +227,11 @@ impl Count for BundleCounts {
     }
     fn fallback(&mut self, rays: u32) {
         self.fallback += rays as u64;
+    }
+    fn cached(&mut self, lanes: u32, hit: u32) {
+        self.cache_tests += 1;
+        self.cache_hits += hit as u64;
+        self.cache_done += u64::from(lanes == hit);
     }
 }
 
@@ -448,11 +487,18 @@ impl<C: Count> BatchKernel<'_, C> {
             dirs,
             t_max,
         };
+        // Each light's last occluder (an index into the leaf-ordered triangles; `u32::MAX`:
+        // none yet), tested first by its next bundle (Haines & Greenberg's shadow cache; the
+        // bundles of a light follow each other along the Morton curve, so it is usually a
+        // neighbour's occluder).
+        let mut cache = [u32::MAX; MAX_APEXES];
         for (b, info) in bundles.iter().enumerate() {
             let apex = apexes[info.apex as usize].to_array();
+            let cache = &mut cache[info.apex as usize % MAX_APEXES];
             let rows = &block[b * ROWS * w..(b + 1) * ROWS * w];
             let lanes = &lane_ray[b * w..(b + 1) * w];
-            let hit = accel.bundle::<V, C>(apex, info, rows, lanes, &rays, &mut stack, count);
+            let hit =
+                accel.bundle::<V, C>(apex, info, rows, lanes, &rays, &mut stack, cache, count);
             for (l, &ray) in lanes.iter().enumerate().take(info.len as usize) {
                 if hit & (1 << l) != 0 {
                     out[ray as usize] = true;
@@ -686,7 +732,9 @@ struct Lanes<V: Wide> {
 
 impl KdAccel {
     /// Traces one bundle from its block of lanes `rows` (see [`ROW_O`]); `lanes` are its
-    /// lanes' rays. Returns the mask of occluded lanes.
+    /// lanes' rays. Tests the triangle `cache` (its light's last occluder) first, then walks the
+    /// tree for the lanes it leaves unoccluded, and leaves in `cache` the last occluder found.
+    /// Returns the mask of occluded lanes.
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn bundle<V: Wide, C: Count>(
@@ -697,6 +745,7 @@ impl KdAccel {
         lanes: &[u32],
         rays: &Rays<'_>,
         stack: &mut [Entry<V>],
+        cache: &mut u32,
         count: &mut C,
     ) -> u32 {
         let w = V::LANES;
@@ -806,13 +855,24 @@ impl KdAccel {
             sz,
             t_max,
         };
+        // The cached occluder first: a lane its exact test hits is occluded whatever the walk
+        // would find (the single ray's answer is "some triangle passes the test"), and the walk
+        // then carries only the others.
+        let mut cached = 0;
+        if let Some(tri) = self.tris.get(*cache as usize) {
+            cached = tri_hits(&ln, k, tri, mask, rays, lanes);
+            count.cached(mask.count_ones(), cached.count_ones());
+            if cached == mask {
+                return cached;
+            }
+        }
         let start = Entry {
             t0,
             t1,
             node: 0,
-            mask,
+            mask: mask & !cached,
         };
-        self.walk_bundle(apex, k, &ln, rays, lanes, start, stack, count)
+        cached | self.walk_bundle(apex, k, &ln, rays, lanes, start, stack, cache, count)
     }
 
     /// The bundle traversal from `start` (see the module docs); returns the occluded lanes.
@@ -827,6 +887,7 @@ impl KdAccel {
         lanes: &[u32],
         start: Entry<V>,
         stack: &mut [Entry<V>],
+        cache: &mut u32,
         count: &mut C,
     ) -> u32 {
         let nodes = &self.tree.nodes[..];
@@ -919,10 +980,11 @@ impl KdAccel {
                 if let Some(tris) = self.tris.get(s..end) {
                     let mut live = e.mask & alive;
                     count.leaf(tris.len() as u32, live.count_ones());
-                    for tri in tris {
+                    for (j, tri) in tris.iter().enumerate() {
                         count.tri();
                         let h = tri_hits(ln, k, tri, live, rays, lanes);
                         if h != 0 {
+                            *cache = (s + j) as u32;
                             hit |= h;
                             live &= !h;
                             alive &= !h;
