@@ -27,7 +27,7 @@
 //! Memory is bounded by the wave: shadow rays are spawned and traced in passes of a fixed number
 //! of rows however many lights there are ([`stages::shade::ShadowPass`]), and each wave's resolved
 //! pixels go to a [`film::PixelSink`] — an in-memory [`Film`], or an image file encoded row by
-//! row on a writer thread ([`output::ImageStream`]).
+//! row on a writer thread ([`film::output::ImageStream`]).
 //!
 //! `unsafe` code is denied crate-wide; one module opts out, [`simd`] (run-time dispatch to
 //! AVX2/AVX-512 builds of a kernel, and the SSE2 lanes of the kD-tree packet traversal).
@@ -38,21 +38,16 @@
 #[allow(clippy::disallowed_methods)]
 pub mod accel;
 pub mod arith;
-pub mod cache;
 pub mod error;
 pub mod film;
-pub mod frame;
 pub mod geometry;
 pub mod input;
 pub mod mesh;
-pub mod output;
 pub mod queue;
-pub mod region;
 pub mod sampling;
 pub mod scene;
 pub mod schedule;
 pub mod simd;
-pub mod wave;
 pub mod world;
 
 #[path = "../stages/mod.rs"]

@@ -1,7 +1,7 @@
 //! Stage `generate`: camera rays for one wave of pixels (SPEC §1).
 //!
 //! Reads: camera, image settings, the wave's pixel range. Rays start at the eye, which is the
-//! origin of the render frame ([`crate::frame`]).
+//! origin of the render frame ([`crate::world::frame`]).
 //! Writes: [`CameraRays`] — every column of the depth-0 `RayQueue`, one row per sample, slots in
 //! order.
 
@@ -12,12 +12,12 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::queue::lanes::store3;
+use crate::queue::region::Region;
+use crate::queue::wave::Wave;
 use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
-use crate::region::Region;
 use crate::sampling::{Strata, uniform};
 use crate::scene::{Camera, ImageSettings};
 use crate::simd::{Kernel, Level, dispatch};
-use crate::wave::Wave;
 
 crate::column_set! {
     /// What `generate_camera_rays` writes: the whole depth-0 ray queue.
@@ -279,7 +279,7 @@ mod tests {
 
     #[test]
     fn the_kernel_gives_camera_ray_bit_for_bit_at_every_level() {
-        use crate::region::Region;
+        use crate::queue::region::Region;
         let scene = spheres();
         let image = &scene.image;
         let region = Region {

@@ -23,7 +23,6 @@ use rayon::prelude::*;
 
 use crate::arith;
 use crate::film::SampleBuffer;
-use crate::frame::{Emission, Light};
 use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::split_by_counts;
@@ -31,6 +30,7 @@ use crate::queue::lanes::{load3, store3};
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, SampleSlot, ShadowQueue};
 use crate::scene::{Material, Scene};
 use crate::simd::{Kernel, Level, dispatch};
+use crate::world::frame::{Emission, Light};
 use crate::world::{Surface, SurfaceOut, World};
 
 crate::column_set! {

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use glam::Vec3;
-use wavefront::output::{ImageMeta, ImageStream};
+use wavefront::film::output::{ImageMeta, ImageStream};
 use wavefront::queue::ShadowQueue;
 use wavefront::scene::Light;
 use wavefront::scene::builtin::spheres;
@@ -194,7 +194,7 @@ fn a_streamed_render_writes_the_bytes_film_save_writes() {
 fn a_streamed_region_writes_the_bytes_its_film_saves() {
     let dir = Scratch::new("range");
     let (scene, mut options) = small_scene_and_options();
-    let region: wavefront::region::Region = "13,71,5,40".parse().unwrap();
+    let region: wavefront::queue::region::Region = "13,71,5,40".parse().unwrap();
     options.region = Some(region);
     let world = World::load(&scene).unwrap();
     let film = render_observed(&scene, &world, &options, ());

@@ -2,7 +2,7 @@
 
 use wavefront::RenderOptions;
 use wavefront::Scene;
-use wavefront::region::Region;
+use wavefront::queue::region::Region;
 use wavefront::scene::builtin::spheres;
 use wavefront_kit::testkit::*;
 

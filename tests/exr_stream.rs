@@ -6,7 +6,7 @@
 
 use std::path::Path;
 
-use wavefront::output::{ImageMeta, ImageStream, read_exr};
+use wavefront::film::output::{ImageMeta, ImageStream, read_exr};
 use wavefront::scene::builtin::spheres;
 use wavefront::{RenderOptions, Scene, World, render_into, render_observed};
 use wavefront_kit::testkit::{Scratch, in_pool};

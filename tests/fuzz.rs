@@ -275,11 +275,11 @@ fn fuzzed_tree_files_load_or_name_the_file_and_never_panic_validation() {
 
 #[test]
 fn fuzzed_cache_entries_are_read_valid_or_rejected() {
-    use wavefront::cache::{CacheKey, TreeCache};
+    use wavefront::accel::cache::{CacheKey, TreeCache};
     let dir = Scratch::new("fuzz-cache");
     let obj = ObjMesh::parse_with(CUBE, Path::new("cube.obj"), ObjRead::default()).unwrap();
     let mesh = obj.to_frame(glam::DVec3::ZERO).unwrap();
-    let entry = wavefront::cache::CachedTree {
+    let entry = wavefront::accel::cache::CachedTree {
         origin: glam::DVec3::ZERO,
         tree: KdTree::build(&mesh, BuildMethod::Sah),
         positions: obj.positions,

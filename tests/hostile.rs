@@ -375,8 +375,8 @@ fn an_output_path_that_is_not_a_regular_file_is_an_error_and_kept() {
 fn two_writers_of_one_output_use_distinct_temporary_files() {
     let dir = Scratch::new("hostile-two-writers");
     let out = dir.join("out.ppm");
-    let (a, mut fa) = wavefront::output::PartialFile::create(&out).unwrap();
-    let (b, mut fb) = wavefront::output::PartialFile::create(&out).unwrap();
+    let (a, mut fa) = wavefront::film::output::PartialFile::create(&out).unwrap();
+    let (b, mut fb) = wavefront::film::output::PartialFile::create(&out).unwrap();
     use std::io::Write;
     fb.write_all(b"short").unwrap();
     fa.write_all(b"a much longer content").unwrap();
@@ -562,7 +562,7 @@ fn a_triangle_beyond_the_f32_triangle_test_is_an_error_not_a_black_image() {
             msg.contains("t.obj") && msg.contains("the f32 triangle test overflows"),
             "±{s}: {msg}"
         );
-        let cache = wavefront::cache::TreeCache::new(dir.join("cache"));
+        let cache = wavefront::accel::cache::TreeCache::new(dir.join("cache"));
         let e = World::load_cached(&scene, Some(&cache))
             .map(|_| ())
             .expect_err("the cache path refuses it too");

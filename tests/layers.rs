@@ -223,8 +223,8 @@ fn an_injected_back_edge_is_named() {
         ),
         (
             "film",
-            "use crate::{\n    queue::X,\n    output::{Y, Z},\n};\n",
-            "`film` uses `output`",
+            "use crate::{\n    queue::X,\n    stages::{Y, Z},\n};\n",
+            "`film` uses `stages`",
         ),
         (
             "stages",

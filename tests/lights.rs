@@ -609,7 +609,7 @@ fn all_three_kinds_match_the_f64_oracle() {
     if let Ok(dir) = std::env::var("WAVEFRONT_TEST_IMAGES") {
         let path = Path::new(&dir).join("three_kinds.png");
         let (w, h) = (scene.image.width, scene.image.height);
-        wavefront::output::save_rgb8(&path, w, h, &image).unwrap();
+        wavefront::film::output::save_rgb8(&path, w, h, &image).unwrap();
     }
     // Each light changes at least 2% of the pixels (so the oracle agrees about all three).
     for k in 0..scene.lights.len() {

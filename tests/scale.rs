@@ -375,8 +375,8 @@ fn a_sibenik_crop_moved_by_every_power_of_ten_renders_as_at_home() {
 #[test]
 fn a_tree_file_in_world_coordinates_fits_the_camera_frame() {
     use wavefront::accel::kdtree::{BuildMethod, KdTree};
-    use wavefront::frame::RenderFrame;
     use wavefront::mesh::ObjMesh;
+    use wavefront::world::frame::RenderFrame;
     let dir = Scratch::new("tree");
     let mut scene = cornell(&dir, DVec3::splat(1e6));
     // One mesh (a tree file covers a single mesh): all walls and blocks white.

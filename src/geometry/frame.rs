@@ -1,6 +1,6 @@
 //! [`RenderFrame`]: the translation from world coordinates (f64) to the render frame (f32) whose
 //! origin is the eye — the one conversion every traced coordinate goes through. Where the
-//! origin is put and what is converted is [`crate::frame`]'s business.
+//! origin is put and what is converted is [`crate::world::frame`]'s business.
 
 use glam::{DVec3, Vec3};
 

@@ -18,7 +18,9 @@ pub mod compact;
 pub mod hit;
 pub mod lanes;
 pub mod ray;
+pub mod region;
 pub mod shadow;
+pub mod wave;
 
 pub use columns::{Access, Column, ColumnAccess};
 pub use hit::{HitColumns, HitQueue, PrimId};

@@ -31,8 +31,9 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::film::{Film, PixelSink, SampleBuffer, resolve_wave};
+use crate::queue::region::Region;
+use crate::queue::wave::Wave;
 use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, ShadowQueue};
-use crate::region::Region;
 use crate::scene::{RenderMode, Scene};
 use crate::stages::generate::{CameraRays, generate_camera_rays};
 use crate::stages::intersect::{
@@ -44,7 +45,6 @@ use crate::stages::shade::{
     ShadedHits, ShadowPass, ShadowRays, add_emitted, shade_hit_mask, shade_hits, spawn_shadow_rays,
 };
 use crate::stages::shadow::{LitRays, ShadowTrace, add_unoccluded, intersect_occluded};
-use crate::wave::Wave;
 use crate::world::World;
 use observer::RunLog;
 pub use observer::{Observer, Progress, Queues, StageRun};

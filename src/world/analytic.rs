@@ -17,13 +17,13 @@
 use glam::Vec3;
 
 use super::{SphereBvh, World};
-use crate::frame::{Plane, Sphere};
 use crate::geometry::offset::gamma;
 use crate::geometry::plane;
 use crate::queue::PrimId;
 use crate::queue::lanes::{load1, load3, store3};
 use crate::scene::OffsetMethod;
 use crate::simd::{Kernel, Level, dispatch};
+use crate::world::frame::{Plane, Sphere};
 
 /// Rays per lane group.
 pub(crate) const LANES: usize = 8;

@@ -1,4 +1,4 @@
-//! Loading a world's triangles through the tree cache ([`crate::cache`]): the mesh files (OBJ,
+//! Loading a world's triangles through the tree cache ([`crate::accel::cache`]): the mesh files (OBJ,
 //! PLY, glTF: [`crate::mesh::read_bytes`]) are read and hashed once, with their format and any
 //! external glTF buffers ([`crate::mesh::cache_sources`]); on a hit the merged mesh and tree come from the cache entry, on a miss they
 //! are parsed ([`crate::mesh::obj_fast`]) and built, and the entry is written for the next run.
@@ -11,11 +11,11 @@ use std::time::Instant;
 
 use super::LoadError;
 use super::{SetupTimes, Triangles, World, check_mesh_path, check_not_empty, tree_source};
+use crate::accel::cache::{CacheKey, CachedTree, TreeCache};
 use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
-use crate::cache::{CacheKey, CachedTree, TreeCache};
-use crate::frame::RenderFrame;
 use crate::mesh::{MeshError, NO_MATERIAL, ObjMesh, ObjRead, TriangleMesh};
 use crate::scene::{Normals, Scene, TreeSource};
+use crate::world::frame::RenderFrame;
 
 /// Bytes of an OBJ file [`crate::mesh::check_file`] checks before the file is read whole.
 const OBJ_PREFIX: u64 = 1 << 20;
@@ -90,10 +90,11 @@ impl World {
             // A look at the first MiB as it streams before the file is read whole: a file that
             // is not OBJ from the start (binary, NULs) fails at once in bounded memory.
             crate::mesh::check_file(&m.path, Some(OBJ_PREFIX))?;
-            let bytes = crate::cache::read_parallel(&m.path).map_err(|source| MeshError::Read {
-                path: m.path.clone(),
-                source,
-            })?;
+            let bytes =
+                crate::accel::cache::read_parallel(&m.path).map_err(|source| MeshError::Read {
+                    path: m.path.clone(),
+                    source,
+                })?;
             if cache.is_some() {
                 extra.push(crate::mesh::cache_sources(&m.path, &bytes)?);
             }

@@ -40,8 +40,8 @@
 use glam::Vec3;
 
 use crate::accel::bvh::{Aabb, Bvh, SlabRay, limit_for};
-use crate::frame::Sphere;
 use crate::geometry::sphere;
+use crate::world::frame::Sphere;
 
 /// Worlds with more spheres than this trace them through a [`SphereBvh`]; up to this many are
 /// tested directly, 8 rays at a time with an f32 pre-test (scene A's three among them). Measured

@@ -57,7 +57,7 @@ pub enum BuildMethod {
 }
 
 /// Everything that decides what [`KdTree::build`] makes with `method`, as text: part of the tree
-/// cache's key ([`crate::cache::CacheKey`]), so changing a builder constant invalidates entries.
+/// cache's key ([`crate::accel::cache::CacheKey`]), so changing a builder constant invalidates entries.
 pub fn builder_settings(method: BuildMethod) -> String {
     match method {
         BuildMethod::Midpoint => format!("midpoint v1 depth {MAX_BUILD_DEPTH}"),

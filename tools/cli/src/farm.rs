@@ -142,7 +142,7 @@ impl SlurmPlan {
 
     /// The tiles' file extension for `output`: `exr` for an `.exr` image, else `png`.
     pub fn tile_extension(output: &Path) -> &'static str {
-        if wavefront::output::is_exr(output) {
+        if wavefront::film::output::is_exr(output) {
             "exr"
         } else {
             "png"
@@ -461,7 +461,7 @@ pub fn run(cmd: FarmCommand) -> Result<()> {
             .with_context(|| format!("cannot create directory {}", dir.display()))?;
     }
     let write = |path: &Path, text: &str| {
-        wavefront::output::write_atomically(path, text.as_bytes())
+        wavefront::film::output::write_atomically(path, text.as_bytes())
             .with_context(|| format!("cannot write {}", path.display()))
     };
     write(&render_file, &scripts.render)?;

@@ -159,8 +159,8 @@ fn preflight(cli: Cli) -> Result<()> {
     match cli.command {
         Some(Command::Render(args)) => {
             let scene = scene_from(&args.scene)?;
-            if !wavefront::output::is_exr(&args.output) {
-                wavefront::output::ImageFormat::from_path(&args.output)?;
+            if !wavefront::film::output::is_exr(&args.output) {
+                wavefront::film::output::ImageFormat::from_path(&args.output)?;
             }
             plan::RenderPlan::new(&scene, &args.part, &args.output, |_| None)?;
             check_threads(args.threads)?;

@@ -37,12 +37,12 @@ use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
 use wavefront::accel::kdtree::{BuildMethod, KdTree};
-use wavefront::frame::RenderFrame;
+use wavefront::film::output::{ImageFormat, ImageMeta, ImageStream, PartialFile};
 use wavefront::mesh::ObjMesh;
-use wavefront::output::{ImageFormat, ImageMeta, ImageStream, PartialFile};
 use wavefront::scene::overrides::Overrides;
 use wavefront::scene::set::Setting;
 use wavefront::schedule::{MAX_WAVE_SAMPLES, Progress as ProgressObserver};
+use wavefront::world::frame::RenderFrame;
 use wavefront::{
     Pipeline, RenderOptions, Scene, Stage, Stats, World, load_scene, load_scene_with, render,
     render_into,
@@ -107,14 +107,14 @@ struct CacheArgs {
 
 impl CacheArgs {
     /// The cache to use, if any (none when no folder is known).
-    fn cache(&self) -> Option<wavefront::cache::TreeCache> {
+    fn cache(&self) -> Option<wavefront::accel::cache::TreeCache> {
         if self.no_cache {
             return None;
         }
         self.cache
             .clone()
-            .or_else(wavefront::cache::TreeCache::default_dir)
-            .map(wavefront::cache::TreeCache::new)
+            .or_else(wavefront::accel::cache::TreeCache::default_dir)
+            .map(wavefront::accel::cache::TreeCache::new)
     }
 }
 
@@ -318,7 +318,7 @@ fn remove_partials_on_signals() {
     };
     std::thread::spawn(move || {
         if let Some(signal) = signals.forever().next() {
-            wavefront::output::remove_partials();
+            wavefront::film::output::remove_partials();
             std::process::exit(128 + signal);
         }
     });
@@ -412,7 +412,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
     let scene = scene_from(&args.scene)?;
     let feedback = feedback::Feedback::new(args.quiet, args.stats);
     // Refuse a bad output name before any work.
-    let exr = wavefront::output::is_exr(&args.output);
+    let exr = wavefront::film::output::is_exr(&args.output);
     if !exr {
         ImageFormat::from_path(&args.output)?;
     }
@@ -437,7 +437,7 @@ fn run_render(args: RenderArgs) -> Result<()> {
         check_memory(
             &args.output.display().to_string(),
             &format!("a {}-pixel-wide EXR", scene.image.width),
-            2 * wavefront::output::exr_block_rows() as u64
+            2 * wavefront::film::output::exr_block_rows() as u64
                 * u64::from(scene.image.width)
                 * EXR_BYTES_PER_PIXEL,
         )?;
@@ -656,7 +656,7 @@ fn build_tree(
     let start = Instant::now();
     // The first MiB checked as it streams: a file that is not OBJ fails before it is read whole.
     wavefront::mesh::check_file(mesh, Some(1 << 20))?;
-    let bytes = wavefront::cache::read_parallel(mesh)
+    let bytes = wavefront::accel::cache::read_parallel(mesh)
         .with_context(|| format!("cannot read mesh file {}", mesh.display()))?;
     let obj = wavefront::mesh::obj_fast::read_bytes(mesh, &bytes)?;
     let load = start.elapsed().as_secs_f64();
@@ -675,8 +675,8 @@ fn build_tree(
     let stats = tree.stats(&m);
     let mut stored = None;
     if let Some(c) = cache.cache() {
-        let key = wavefront::cache::CacheKey::new(method, &[&bytes]);
-        let entry = wavefront::cache::CachedTree {
+        let key = wavefront::accel::cache::CacheKey::new(method, &[&bytes]);
+        let entry = wavefront::accel::cache::CachedTree {
             origin: frame.origin,
             positions: obj.positions,
             indices: obj.indices,

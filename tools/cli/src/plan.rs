@@ -8,7 +8,7 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 
 use crate::tile::{Fingerprint, SourceDigest, TileInfo, write_tile};
-use wavefront::region::{Region, TileSpec};
+use wavefront::queue::region::{Region, TileSpec};
 use wavefront::{Film, Scene};
 
 use crate::frames::{FrameRange, frame_path, has_frame_placeholder};
@@ -139,7 +139,7 @@ pub fn save_part(
         .output
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("png"));
-    let is_exr = wavefront::output::is_exr(&job.output);
+    let is_exr = wavefront::film::output::is_exr(&job.output);
     match region {
         Some(bounds) if is_exr => {
             let info = TileInfo {

@@ -14,8 +14,8 @@ use std::io::Cursor;
 use std::path::{Path, PathBuf};
 
 use wavefront::error::OutputError;
-use wavefront::output::ImageMeta;
-use wavefront::region::Region;
+use wavefront::film::output::ImageMeta;
+use wavefront::queue::region::Region;
 use wavefront::scene::{Scene, TreeSource};
 
 /// Text chunk holding the tile's region of the full image, `x0,x1,y0,y1`.
@@ -162,7 +162,7 @@ impl Merged {
     /// Writes the merged image: an EXR for EXR tiles, else PNG or PPM by `path`'s extension.
     /// Mixing (EXR tiles into a `.png`, or the reverse) is an error naming `path`.
     pub fn save(&self, path: &Path) -> Result<(), OutputError> {
-        let exr = wavefront::output::is_exr(path);
+        let exr = wavefront::film::output::is_exr(path);
         if exr != self.hdr {
             return Err(OutputError::Io {
                 file: path.to_path_buf(),
@@ -182,9 +182,9 @@ impl Merged {
                     .map(|&p| p.into())
                     .collect(),
             };
-            wavefront::output::write_exr(path, &film)
+            wavefront::film::output::write_exr(path, &film)
         } else {
-            wavefront::output::write_rgb8(
+            wavefront::film::output::write_rgb8(
                 path,
                 (self.width, self.height),
                 &ImageMeta::default(),
@@ -256,7 +256,7 @@ pub fn write_tile(path: &Path, info: &TileInfo, rgb: &[u8]) -> Result<(), Output
 }
 
 /// 8-bit RGB as a PNG file with `tEXt` chunks, through the one image writer
-/// ([`wavefront::output::write_rgb8`]: atomic, the same encoder as every render).
+/// ([`wavefront::film::output::write_rgb8`]: atomic, the same encoder as every render).
 fn write_png_with_text(
     path: &Path,
     size: (u32, u32),
@@ -269,7 +269,7 @@ fn write_png_with_text(
             .map(|(k, v)| ((*k).to_owned(), v.clone()))
             .collect(),
     };
-    wavefront::output::write_rgb8(path, size, &meta, rgb)
+    wavefront::film::output::write_rgb8(path, size, &meta, rgb)
 }
 
 /// Writes an EXR tile: the region's linear film with `info` as string attributes.
@@ -285,14 +285,14 @@ pub fn write_tile_exr(
             .map(|(k, v)| ((*k).to_owned(), v.clone()))
             .collect(),
     };
-    wavefront::output::write_exr_with(path, film, &meta)
+    wavefront::film::output::write_exr_with(path, film, &meta)
 }
 
 /// Reads a tile file (PNG with text chunks, or EXR with string attributes) and checks it against
 /// itself: its metadata parses, its bounds lie inside its image, and its pixels are the bounds'
 /// size.
 pub fn read_tile(path: &Path) -> Result<Tile, TileError> {
-    if wavefront::output::is_exr(path) {
+    if wavefront::film::output::is_exr(path) {
         return read_exr_tile(path);
     }
     let unreadable = |message: String| TileError::Unreadable {
@@ -379,10 +379,11 @@ fn tile_info(
 
 /// [`read_tile`] for an EXR tile.
 fn read_exr_tile(path: &Path) -> Result<Tile, TileError> {
-    let image = wavefront::output::read_exr(path).map_err(|message| TileError::Unreadable {
-        file: path.to_path_buf(),
-        message,
-    })?;
+    let image =
+        wavefront::film::output::read_exr(path).map_err(|message| TileError::Unreadable {
+            file: path.to_path_buf(),
+            message,
+        })?;
     let text: HashMap<&str, &str> = image
         .text
         .iter()
@@ -629,7 +630,7 @@ mod tests {
         assert_eq!((back.info, back.rgb), (t.info.clone(), t.rgb.clone()));
         // A plain PNG is not a tile; garbage is unreadable; both name the file.
         let plain = dir.join("plain.png");
-        wavefront::output::save_rgb8(&plain, 3, 2, &t.rgb).unwrap();
+        wavefront::film::output::save_rgb8(&plain, 3, 2, &t.rgb).unwrap();
         let e = read_tile(&plain).unwrap_err().to_string();
         assert!(e.contains("plain.png: not a wavefront tile"), "{e}");
         let junk = dir.join("junk.png");
@@ -683,7 +684,7 @@ mod tests {
         let merged = merge_tiles(&tiles).unwrap();
         let out = dir.join("whole.exr");
         merged.save(&out).unwrap();
-        let image = wavefront::output::read_exr(&out).unwrap();
+        let image = wavefront::film::output::read_exr(&out).unwrap();
         assert_eq!(image.size, (5, 3));
         assert!(
             image.pixels == whole,
@@ -724,7 +725,7 @@ mod tests {
     /// A 4 × 2 tile of a 4 × 4 image, written as `name`.
     fn tile_bytes(dir: &Scratch, name: &str) -> (PathBuf, Vec<u8>) {
         let info = TileInfo {
-            bounds: wavefront::region::Region {
+            bounds: wavefront::queue::region::Region {
                 x0: 0,
                 x1: 4,
                 y0: 0,

@@ -388,8 +388,8 @@ fn exr_tiles_merge_into_the_single_linear_render() {
         let o = dir.run(&args);
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));
     }
-    let full = wavefront::output::read_exr(&dir.path().join("full.exr")).unwrap();
-    let merged = wavefront::output::read_exr(&dir.path().join("merged.exr")).unwrap();
+    let full = wavefront::film::output::read_exr(&dir.path().join("full.exr")).unwrap();
+    let merged = wavefront::film::output::read_exr(&dir.path().join("merged.exr")).unwrap();
     assert_eq!(full.size, (512, 512));
     assert!(
         merged.pixels == full.pixels,

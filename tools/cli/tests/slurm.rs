@@ -358,8 +358,8 @@ fn tiles_and_frames_on_a_slurm_cluster_match_single_renders() {
         work.join("e.tiles/tile_1.exr").exists(),
         "EXR tiles for an EXR image"
     );
-    let merged = wavefront::output::read_exr(&work.join("e.exr")).expect("no merged EXR");
-    let single = wavefront::output::read_exr(&work.join("single.exr")).unwrap();
+    let merged = wavefront::film::output::read_exr(&work.join("e.exr")).expect("no merged EXR");
+    let single = wavefront::film::output::read_exr(&work.join("single.exr")).unwrap();
     assert_eq!(merged.size, single.size);
     assert!(
         merged.pixels == single.pixels,

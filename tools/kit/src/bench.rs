@@ -19,14 +19,14 @@ use std::time::Instant;
 use serde::{Deserialize, Serialize};
 
 use wavefront::LoadError;
+use wavefront::queue::region::Region;
+use wavefront::queue::wave::Wave;
 use wavefront::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
-use wavefront::region::Region;
 use wavefront::scene::Scene;
 use wavefront::schedule::{
     self, Observer, Pipeline, Queues, RenderOptions, Stage, StageRun, WaveQueues, render_observed,
 };
 use wavefront::stages::shade::{ShadedHits, ShadowRays};
-use wavefront::wave::Wave;
 use wavefront::world::World;
 
 /// The queues one depth of the snapshot wave read, as the schedule produced them.
@@ -400,7 +400,7 @@ pub struct BenchConfig {
     /// Timed runs per kernel (best taken) and renders per frame figure (median taken).
     pub repeat: usize,
     /// The tree cache the scene is loaded through (`None`: parse and build every time).
-    pub cache: Option<wavefront::cache::TreeCache>,
+    pub cache: Option<wavefront::accel::cache::TreeCache>,
 }
 
 /// Everything `wavefront bench` prints.

@@ -322,7 +322,7 @@ pub fn write(report: &Report, settings: &ReportSettings, dir: &Path) -> Result<(
 }
 
 fn write_file(path: &Path, bytes: &[u8]) -> Result<()> {
-    wavefront::output::write_atomically(path, bytes)
+    wavefront::film::output::write_atomically(path, bytes)
         .with_context(|| format!("cannot write {}", path.display()))
 }
 
@@ -446,6 +446,6 @@ fn plot(report: &Report, path: &Path) -> Result<()> {
         }
         root.present().map_err(|e| fail(&e))?;
     }
-    wavefront::output::save_rgb8(path, w, h, &rgb)?;
+    wavefront::film::output::save_rgb8(path, w, h, &rgb)?;
     Ok(())
 }

@@ -1,16 +1,18 @@
 //! The film: per-sample radiance of the current wave ([`SampleBuffer`]), its box filter into
 //! pixels ([`resolve_wave`]), where resolved pixels go ([`PixelSink`]: an in-memory [`Film`], or
-//! an image file streamed as the render goes, [`crate::output::ImageStream`]), and 8-bit output.
+//! an image file streamed as the render goes, [`crate::film::output::ImageStream`]), and 8-bit output.
 //!
 //! Accumulation is deterministic: every addition into a sample happens in schedule order (depth by
 //! depth, shade before shadow), and within one pass each sample is written by exactly one task.
+
+pub mod output;
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::arith;
+use crate::queue::wave::Wave;
 use crate::queue::{MIN_CHUNK, PixelIndex, SampleSlot};
-use crate::wave::Wave;
 
 /// Where the schedule puts each wave's resolved pixels (linear radiance), as soon as the wave is
 /// done. Waves arrive in ascending pixel order and never overlap; pixels never delivered (outside

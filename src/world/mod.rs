@@ -6,16 +6,17 @@ use glam::Vec3;
 use crate::accel::kdtree::TreeError;
 use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
 use crate::error::SceneError;
-use crate::frame::{Light, Plane, RenderFrame, Sphere};
 use crate::geometry::offset::{gamma, offset_fixed, offset_ray_origin};
 use crate::geometry::{plane, sphere, triangle};
 use crate::mesh::TriangleMesh;
 use crate::mesh::{MeshError, ObjMesh};
 use crate::queue::PrimId;
 use crate::scene::{Material, OffsetMethod, Robustness, Scene, SphereTest, TreeSource};
+use crate::world::frame::{Light, Plane, RenderFrame, Sphere};
 
 mod analytic;
 mod cached;
+pub mod frame;
 mod sphere_bvh;
 pub use analytic::SurfaceOut;
 pub use cached::{CacheStatus, Setup};

@@ -3,8 +3,8 @@
 //! Every queue row carries a [`SampleSlot`]; a wave says which pixel and which of its samples a
 //! slot is. This is the one place where slots (queue side) and pixels (film side) meet.
 
+use crate::queue::region::Region;
 use crate::queue::{PixelIndex, SampleSlot};
-use crate::region::Region;
 
 /// A contiguous run of a region's pixels (row-major within the region) rendered together; its
 /// samples fill slots `0..len()`, pixel by pixel (sample `s` of the wave's `k`-th pixel has slot
