@@ -37,7 +37,7 @@
 // work, not any answer (traversal is checked against brute force), so no pixel depends on them.
 #[allow(clippy::disallowed_methods)]
 pub mod accel;
-pub mod arith;
+pub(crate) mod arith;
 pub mod error;
 pub mod film;
 pub mod geometry;
@@ -60,7 +60,7 @@ pub use schedule::{Pipeline, RenderOptions, Stage, render, render_into, render_o
 pub use world::{LoadError, World};
 
 /// Loads a scene by built-in name or file path: a scene file, or a bare mesh (`.obj`), which
-/// is framed automatically ([`scene::framing::bare_mesh`], SPEC §16).
+/// is framed automatically (`scene::framing::bare_mesh`, SPEC §16).
 pub fn load_scene(name_or_path: &str) -> Result<Scene, world::LoadError> {
     load_scene_with(name_or_path, &[])
 }

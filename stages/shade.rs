@@ -230,7 +230,7 @@ pub fn shadow_radiance(
 }
 
 /// The shadow ray from `origin` (the hit's offset spawn point) to `light`: unit direction and
-/// `t_max`, the distance shortened at the light by its error bound ([`shadow_t_max`]); for a
+/// `t_max`, the distance shortened at the light by its error bound (`shadow_t_max`); for a
 /// directional light `l` itself and `t_max = ∞` (unbounded: anything along it blocks).
 #[inline]
 pub fn shadow_ray(origin: Vec3, light: &Light) -> (Vec3, f32) {

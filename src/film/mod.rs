@@ -199,7 +199,7 @@ fn with_table<R>(inv_gamma: f32, f: impl FnOnce(&GammaTable) -> R) -> R {
 
 /// The 8-bit output levels of one gamma as 255 thresholds (SPEC §2 allows a table whose entries
 /// a deterministic routine defines). Level `k` starts at the smallest f32 `c` in `[0, 1]` with
-/// `round(255 · c^(1/γ)) ≥ k`, [`arith::pow`] being the power ([`gamma_level`]), found by
+/// `round(255 · c^(1/γ)) ≥ k`, `arith::pow` being the power ([`gamma_level`]), found by
 /// bisection over the bit patterns; a value's level is the number of thresholds at or below it.
 /// That is [`gamma_level`] itself wherever it does not decrease (everywhere, as far as tested)
 /// for the cost of a table look-up instead of an `exp2` and a `log2` per channel.

@@ -2,8 +2,8 @@
 
 pub mod frame;
 pub mod mesh;
-pub mod offset;
-pub mod plane;
+pub(crate) mod offset;
+pub(crate) mod plane;
 pub mod sphere;
 pub mod triangle;
 

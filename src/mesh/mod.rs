@@ -1,5 +1,5 @@
-//! Triangle meshes: flat vertex and index arrays loaded from Wavefront OBJ, PLY ([`ply`]) and
-//! glTF ([`gltf`]) files, told apart by extension in one place ([`check_format`],
+//! Triangle meshes: flat vertex and index arrays loaded from Wavefront OBJ, PLY (`ply`) and
+//! glTF (`gltf`) files, told apart by extension in one place ([`check_format`],
 //! [`read_bytes`]).
 //!
 //! Reads OBJ text (checked line by line by [`check_lines`], then parsed by `tobj`), writes a
@@ -17,10 +17,10 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use thiserror::Error;
 
-pub mod gltf;
+pub(crate) mod gltf;
 pub mod mtl;
 pub mod obj_fast;
-pub mod ply;
+pub(crate) mod ply;
 
 pub use crate::geometry::mesh::TriangleMesh;
 
@@ -100,11 +100,11 @@ pub enum MeshError {
 pub enum Format {
     /// Wavefront OBJ (`.obj`), with its MTL libraries.
     Obj,
-    /// PLY (`.ply`): ASCII or binary ([`ply`]).
+    /// PLY (`.ply`): ASCII or binary (`ply`).
     Ply,
-    /// glTF 2.0 as JSON (`.gltf`) with external or data-URI buffers ([`gltf`]).
+    /// glTF 2.0 as JSON (`.gltf`) with external or data-URI buffers (`gltf`).
     Gltf,
-    /// Binary glTF 2.0 (`.glb`) ([`gltf`]).
+    /// Binary glTF 2.0 (`.glb`) (`gltf`).
     Glb,
 }
 
@@ -146,8 +146,8 @@ pub fn check_format(path: &Path) -> Result<Format, MeshError> {
 /// Reads the mesh file `path` whose bytes are `bytes`, in the format its extension names
 /// ([`check_format`]): the one place where formats are told apart. OBJ goes through the fast
 /// parser ([`crate::mesh::obj_fast`]) when `fast` and `what` asks for nothing but positions and faces,
-/// else through tobj ([`ObjMesh::parse_with`]); PLY through [`ply::parse`]; glTF through
-/// [`gltf::parse`] (which reads external buffers relative to `path`).
+/// else through tobj ([`ObjMesh::parse_with`]); PLY through `ply::parse`; glTF through
+/// `gltf::parse` (which reads external buffers relative to `path`).
 pub fn read_bytes(
     path: &Path,
     bytes: &[u8],

@@ -9,7 +9,7 @@
 //!
 //! Orbits: frame `f` of `N` puts the eye at `eye` rotated about the axis through `look_at` along
 //! `up` by `turns · f / N` of a full turn (Rodrigues' formula), so its distance to `look_at` stays
-//! that of frame 0. The rotation's sine and cosine come from [`crate::arith::sin_cos_turns`], built from basic
+//! that of frame 0. The rotation's sine and cosine come from `crate::arith::sin_cos_turns`, built from basic
 //! operations only, so an orbit's frames are the same bits on every CPU (SPEC §2).
 
 use glam::DVec3;

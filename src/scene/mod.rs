@@ -6,11 +6,11 @@
 //! camera-relative f32 render frame and builds the acceleration structure.
 
 pub mod builtin;
-pub mod camera;
+pub(crate) mod camera;
 pub mod camera_path;
 pub mod file;
-pub mod framing;
-pub mod gltf;
+pub(crate) mod framing;
+pub(crate) mod gltf;
 pub mod lookat;
 pub mod mtl;
 pub mod overrides;

@@ -151,7 +151,7 @@ pub fn bind(
 }
 
 /// Binds a glTF file's materials (`material = "gltf"`, SPEC §15) as [`bind`] binds an OBJ's MTL
-/// libraries: every material of `gltf` ([`crate::scene::gltf::materials`]) is appended to
+/// libraries: every material of `gltf` (`crate::scene::gltf::materials`) is appended to
 /// `materials` (scene material `base + materials.len()` onwards), in file order. Primitives
 /// without a material take `fallback`; without one, that is an error. Ignored textures are one
 /// warning line.

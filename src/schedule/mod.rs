@@ -16,10 +16,10 @@
 //! reflective material or with `max_depth = 0`, no shadow stage without shadows or lights, no
 //! specular evaluation without `ks > 0`, no kD tree without a mesh, no shading at all for a hit mask.
 
-pub mod observer;
-pub mod passes;
+pub(crate) mod observer;
+pub(crate) mod passes;
 pub mod stage;
-pub mod stats;
+pub(crate) mod stats;
 
 use std::cell::RefCell;
 use std::collections::BTreeMap;

@@ -573,7 +573,7 @@ impl World {
     /// Every primitive kind computes its hit point with an error bound (spheres and planes
     /// re-project `o + t·d` onto the surface, triangles rebuild it from barycentric coordinates),
     /// and rays leave from the point pushed along the facing normal by that bound
-    /// ([`offset_ray_origin`]).
+    /// (`offset_ray_origin`).
     #[inline]
     pub fn surface(&self, prim: PrimId, o: Vec3, d: Vec3, t: f32) -> Surface {
         let p = o + t * d;

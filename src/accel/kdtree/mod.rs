@@ -1,6 +1,6 @@
 //! kD tree over a [`TriangleMesh`]: the accelerator of the kD-intersect stage.
 //!
-//! Split like Embree/obvhs: [`node`] (8-byte node layout), `build_midpoint` (the assignment's
+//! Split like Embree/obvhs: `node` (8-byte node layout), `build_midpoint` (the assignment's
 //! longest-axis midpoint rule), `build_binned` (binned SAH for the nodes of more than 1,024
 //! triangles of the default SAH tree: in parallel over triangles at the top, then subtrees as
 //! sequential tasks) over `build_sah` (Wald & Havran 2006, O(N log N), the exact sweep below),
@@ -20,7 +20,7 @@
 mod build_binned;
 mod build_midpoint;
 mod build_sah;
-pub mod node;
+pub(crate) mod node;
 mod overlap;
 mod reframe;
 mod stats;
