@@ -1,5 +1,5 @@
 //! The seeded fuzz harness of the input parsers' suites (`tests/fuzz.rs`, the CLI's tile and
-//! argument fuzzing): a SplitMix64 [`Rng`], byte-level mutations of a valid file, and [`fuzz`],
+//! argument fuzzing): the core's seeded [`Rng`], byte-level mutations of a valid file, and [`fuzz`],
 //! which runs `WAVEFRONT_FUZZ_CASES` mutated cases (default 10,000) from `WAVEFRONT_FUZZ_SEED`
 //! (default 21) under a watchdog that aborts, naming the case, when one takes longer than
 //! `WAVEFRONT_FUZZ_CASE_SECONDS` (default 20).
@@ -7,6 +7,8 @@
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
+
+pub use wavefront::sampling::Rng;
 
 /// Cases per parser (`WAVEFRONT_FUZZ_CASES`, default 10,000).
 pub fn cases() -> u64 {
@@ -25,25 +27,6 @@ pub fn seed(parser: &str) -> u64 {
     parser.bytes().fold(base ^ 0x9e37_79b9_7f4a_7c15, |h, b| {
         (h ^ b as u64).wrapping_mul(0x100_0000_01b3)
     })
-}
-
-/// splitmix64: a small, seeded, portable generator.
-pub struct Rng(pub u64);
-
-impl Rng {
-    /// The next 64 random bits.
-    pub fn bits(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        z ^ (z >> 31)
-    }
-
-    /// A number in `0..n` (0 when `n` is 0).
-    pub fn below(&mut self, n: usize) -> usize {
-        (self.bits() % n.max(1) as u64) as usize
-    }
 }
 
 /// Tokens inserted or written over bytes: numbers at and past the edges, and words of every
@@ -139,7 +122,7 @@ pub fn mutate(rng: &mut Rng, bytes: &mut Vec<u8>) {
         }
         // A run of one random byte.
         5 => {
-            let b = rng.bits() as u8;
+            let b = rng.next_u64() as u8;
             let n = 1 + rng.below(32);
             bytes.splice(at..at, std::iter::repeat_n(b, n));
         }
