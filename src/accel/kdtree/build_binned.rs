@@ -292,7 +292,11 @@ fn node_large(
     let n = ids.len();
     if n <= TASK_MIN {
         let start = Instant::now();
-        let mut arena = Arena { ids, bounds };
+        let mut arena = Arena {
+            ids,
+            bounds,
+            small: build_sah::SmallArena::new(),
+        };
         node_task(ctx, bx, geo, 0, n, depth, out, &mut arena);
         Clock::add(&ctx.clock.tasks, start);
         ctx.clock.task_count.fetch_add(1, Ordering::Relaxed);
@@ -346,10 +350,12 @@ fn node_large(
 }
 
 /// Scratch of one sequential task: the triangles of the binned nodes on the current path, each
-/// node's after its parent's (pushed before descending, truncated after).
+/// node's after its parent's (pushed before descending, truncated after), and the exact sweep's
+/// arena, reused by every small subtree of the task.
 struct Arena {
     ids: Vec<u32>,
     bounds: Vec<Aabb>,
+    small: build_sah::SmallArena,
 }
 
 /// One node of a sequential task: its triangles are `arena.ids/bounds[first..first + n]`, the
@@ -382,6 +388,19 @@ fn node_task(
         })
         .flatten();
     let Some(split) = split else {
+        if n <= build_sah::SMALL {
+            let Arena { ids, bounds, small } = arena;
+            build_sah::node_small(
+                bx,
+                &ids[range.clone()],
+                &bounds[range],
+                depth,
+                ctx.max_depth,
+                out,
+                small,
+            );
+            return;
+        }
         build_sah::subtree(
             ctx.mesh,
             bx,

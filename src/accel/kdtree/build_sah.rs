@@ -7,7 +7,8 @@
 //! (cheaper at that size) and bound straddling triangles by box intersection rather than exact
 //! clipping. A sweep per axis finds the cheapest plane; empty space gets a bonus; a node
 //! becomes a leaf when splitting costs more than intersecting all its triangles, or at the depth
-//! cap `8 + 1.3·log2 N` (pbrt).
+//! cap `8 + 1.3·log2 N` (pbrt); a node below the root of at most [`LEAF_MAX`] triangles is a
+//! leaf without a search.
 //!
 //! Classification follows the paper: a triangle whose (clipped) extent only touches the plane
 //! goes to the one side it lies on, and a triangle lying IN the plane goes to the side that makes
@@ -35,8 +36,15 @@ const PARALLEL_MIN: usize = 4096;
 /// children's triangles live on the stack, so a small subtree makes one heap allocation.
 pub(crate) const SMALL: usize = 48;
 
+/// Nodes below the root of at most this many triangles become leaves without a split search (a
+/// mesh that small is still searched at the root, so its tree cuts off empty space). Measured on
+/// Sibenik (callgrind, 1 thread): the build takes 17 % fewer instructions than searching every
+/// node (1.28 G against 1.54 G), and tracing the `sibenik-shadows` frame with the tree 0.7 % more
+/// (679 M against 674 M); 3 gives 8 % and -0.4 %, 8 gives 27 % and +3.1 %.
+pub(crate) const LEAF_MAX: usize = 5;
+
 /// The builder's own constants, for [`super::builder_settings`].
-pub(crate) const SETTINGS: &str = "empty 0.8/0.02 small 48 exact-sweep";
+pub(crate) const SETTINGS: &str = "empty 0.8/0.02 small 48 leaf 5 exact-sweep";
 
 const END: u64 = 0;
 const PLANAR: u64 = 1;
@@ -481,7 +489,7 @@ fn small(
     out: &mut Flat,
     arena: &mut SmallArena,
 ) {
-    let split = if n == 0 || depth >= max_depth {
+    let split = if n == 0 || (depth > 0 && n <= LEAF_MAX) || depth >= max_depth {
         None
     } else {
         let ev = &arena.events;
@@ -679,6 +687,25 @@ mod tests {
             idx.push([b, b + 1, b + 2]);
         }
         TriangleMesh::new(v, idx)
+    }
+
+    #[test]
+    fn a_node_of_at_most_leaf_max_triangles_is_a_leaf() {
+        // The corner cluster's first LEAF_MAX triangles (disjoint, in a row) in the large box:
+        // the root is searched and cuts off the empty space; the node left holding them is a
+        // leaf, where a search would separate them.
+        let full = corner_mesh();
+        let holds_all = |n: usize| {
+            let mesh = TriangleMesh::new(full.vertices.clone(), full.indices[..=n].to_vec());
+            let tree = KdTree::build(&mesh, BuildMethod::Sah);
+            tree.validate(&mesh).expect("valid");
+            assert!(!tree.nodes()[0].is_leaf(), "{n}: the root is searched");
+            let all: Vec<u32> = (1..=n as u32).collect();
+            (0..tree.nodes().len()).any(|i| tree.leaf_triangles(i) == all)
+        };
+        assert!(holds_all(super::LEAF_MAX));
+        // One triangle more and the node is searched, and split.
+        assert!(!holds_all(super::LEAF_MAX + 1));
     }
 
     #[test]
