@@ -12,7 +12,7 @@ use std::time::Instant;
 use super::LoadError;
 use super::{SetupTimes, Triangles, World, check_mesh_path, check_not_empty, tree_source};
 use crate::accel::cache::{CacheKey, CachedTree, TreeCache};
-use crate::accel::kdtree::{BuildMethod, KdAccel, KdTree};
+use crate::accel::kdtree::{BuildMethod, BuildPhases, KdAccel, KdTree};
 use crate::mesh::{MeshError, NO_MATERIAL, ObjMesh, ObjRead, TriangleMesh};
 use crate::scene::{Normals, Scene, TreeSource};
 use crate::world::frame::RenderFrame;
@@ -87,18 +87,9 @@ impl World {
         let mut extra = Vec::with_capacity(scene.meshes.len());
         for m in &scene.meshes {
             check_mesh_path(scene, m)?;
-            // A look at the first MiB as it streams before the file is read whole: a file that
-            // is not OBJ from the start (binary, NULs) fails at once in bounded memory.
-            crate::mesh::check_file(&m.path, Some(OBJ_PREFIX))?;
-            let bytes =
-                crate::accel::cache::read_parallel(&m.path).map_err(|source| MeshError::Read {
-                    path: m.path.clone(),
-                    source,
-                })?;
-            if cache.is_some() {
-                extra.push(crate::mesh::cache_sources(&m.path, &bytes)?);
-            }
+            let (bytes, sources) = read_mesh_file(&m.path, cache.is_some())?;
             files.push(bytes);
+            extra.push(sources);
         }
         let mut setup = Setup::default();
         let method = match &source {
@@ -106,15 +97,9 @@ impl World {
             TreeSource::Midpoint => Some(BuildMethod::Midpoint),
             TreeSource::File(_) => None,
         };
-        let key = cache.zip(method).map(|(c, method)| {
-            let mut slices: Vec<&[u8]> = Vec::with_capacity(files.len());
-            for (f, e) in files.iter().zip(&extra) {
-                slices.extend(e.first().map(Vec::as_slice));
-                slices.push(f);
-                slices.extend(e.iter().skip(1).map(Vec::as_slice));
-            }
-            (c, CacheKey::new(method, &slices))
-        });
+        let key = cache
+            .zip(method)
+            .map(|(c, method)| (c, cache_key(method, &files, &extra)));
         let load_seconds = start.elapsed().as_secs_f64();
         let tree_start = Instant::now();
         let mut cached = None;
@@ -173,6 +158,40 @@ impl World {
         setup.times.tree_seconds = tree_start.elapsed().as_secs_f64() - parse_seconds;
         Ok((World::analytic(scene, frame, Some(triangles)), setup))
     }
+}
+
+/// The bytes of the mesh file `path` (checked before: [`super::check_mesh_file`]), after a look
+/// at its first MiB as it streams — a file that is not OBJ from the start (binary, NULs) fails
+/// at once in bounded memory — and, when `keyed`, what else its cache key is made of
+/// ([`crate::mesh::cache_sources`]).
+pub fn read_mesh_file(
+    path: &std::path::Path,
+    keyed: bool,
+) -> Result<(Vec<u8>, Vec<Vec<u8>>), MeshError> {
+    crate::mesh::check_file(path, Some(OBJ_PREFIX))?;
+    let bytes = crate::accel::cache::read_parallel(path).map_err(|source| MeshError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let sources = if keyed {
+        crate::mesh::cache_sources(path, &bytes)?
+    } else {
+        vec![]
+    };
+    Ok((bytes, sources))
+}
+
+/// The cache key of meshes `files` (their bytes) with their other sources `extra`
+/// ([`read_mesh_file`]), built with `method`: a format tag first, then the bytes, then any
+/// external buffers, mesh after mesh.
+pub fn cache_key(method: BuildMethod, files: &[Vec<u8>], extra: &[Vec<Vec<u8>>]) -> CacheKey {
+    let mut slices: Vec<&[u8]> = Vec::with_capacity(files.len());
+    for (f, e) in files.iter().zip(extra) {
+        slices.extend(e.first().map(Vec::as_slice));
+        slices.push(f);
+        slices.extend(e.iter().skip(1).map(Vec::as_slice));
+    }
+    CacheKey::new(method, &slices)
 }
 
 /// The scene's meshes parsed and merged (meshes one after another, in scene order).
@@ -274,16 +293,29 @@ fn tree_file_entry(
 
 /// Builds the tree over the parsed, merged mesh in the frame centred on it.
 fn build_entry(parsed: &Parsed, method: BuildMethod) -> Result<CachedTree, MeshError> {
-    let mesh = &parsed.merged;
-    let centred = RenderFrame::centered_on(mesh);
-    let tree = KdTree::build(&mesh.to_frame(centred.origin)?, method);
-    Ok(CachedTree {
+    let (entry, _, _) = centred_entry(parsed.merged.clone(), parsed.counts.clone(), method)?;
+    Ok(entry)
+}
+
+/// The cache entry of `mesh` (merged meshes of `mesh_triangles` triangles each): its tree built
+/// with `method` in the frame centred on it — what a render's cache miss builds and what
+/// `kdtree build` writes and stores — with the mesh in that frame and the build's phases.
+pub fn centred_entry(
+    mesh: ObjMesh,
+    mesh_triangles: Vec<u64>,
+    method: BuildMethod,
+) -> Result<(CachedTree, TriangleMesh, BuildPhases), MeshError> {
+    let centred = RenderFrame::centered_on(&mesh);
+    let framed = mesh.to_frame(centred.origin)?;
+    let (tree, phases) = KdTree::build_profiled(&framed, method);
+    let entry = CachedTree {
         origin: centred.origin,
-        positions: mesh.positions.clone(),
-        indices: mesh.indices.clone(),
-        mesh_triangles: parsed.counts.clone(),
+        positions: mesh.positions,
+        indices: mesh.indices,
+        mesh_triangles,
         tree,
-    })
+    };
+    Ok((entry, framed, phases))
 }
 
 /// The entry's mesh and tree in `frame`, with the scene's materials: per mesh, or as `parsed`

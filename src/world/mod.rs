@@ -19,7 +19,7 @@ mod cached;
 pub mod frame;
 mod sphere_bvh;
 pub use analytic::SurfaceOut;
-pub use cached::{CacheStatus, Setup};
+pub use cached::{CacheStatus, Setup, cache_key, centred_entry, read_mesh_file};
 pub use sphere_bvh::{SPHERE_BVH_MIN, SphereBvh};
 
 /// Anything that can go wrong turning a [`Scene`] into a traceable world.

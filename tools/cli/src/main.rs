@@ -36,7 +36,7 @@ use std::time::Instant;
 use anyhow::{Context, Result, bail};
 use clap::{Args, Parser, Subcommand, ValueEnum};
 
-use wavefront::accel::kdtree::{BuildMethod, KdTree};
+use wavefront::accel::kdtree::BuildMethod;
 use wavefront::film::output::{ImageFormat, ImageMeta, ImageStream, PartialFile};
 use wavefront::mesh::ObjMesh;
 use wavefront::scene::overrides::Overrides;
@@ -654,35 +654,27 @@ fn build_tree(
 ) -> Result<()> {
     wavefront::world::check_mesh_file(mesh, None)?;
     let start = Instant::now();
-    // The first MiB checked as it streams: a file that is not OBJ fails before it is read whole.
-    wavefront::mesh::check_file(mesh, Some(1 << 20))?;
-    let bytes = wavefront::accel::cache::read_parallel(mesh)
-        .with_context(|| format!("cannot read mesh file {}", mesh.display()))?;
+    let (bytes, sources) = wavefront::world::read_mesh_file(mesh, true)?;
     let obj = wavefront::mesh::obj_fast::read_bytes(mesh, &bytes)?;
     let load = start.elapsed().as_secs_f64();
-    let frame = RenderFrame::centered_on(&obj);
-    let m = obj.to_frame(frame.origin)?;
-    let start = Instant::now();
-    let (tree, phases) = KdTree::build_profiled(&m, method);
-    let build = start.elapsed().as_secs_f64();
+    // The entry a render's cache miss builds: the tree in the frame centred on the mesh.
+    let triangles = vec![obj.len() as u64];
+    let (entry, m, phases) = wavefront::world::centred_entry(obj, triangles, method)?;
+    let build = phases.wall_seconds;
+    let frame = RenderFrame::at(entry.origin);
     // Streamed to a partial file renamed over the output when complete: the text of a large tree
     // (~330 B a triangle) is never held in memory, and a failed write leaves no file behind.
     let cannot_write = || format!("cannot write {}", output.display());
     let (partial, file) = PartialFile::create(output).with_context(cannot_write)?;
-    tree.write_text_in(file, &frame)
+    entry
+        .tree
+        .write_text_in(file, &frame)
         .with_context(cannot_write)?;
     partial.commit().with_context(cannot_write)?;
-    let stats = tree.stats(&m);
+    let stats = entry.tree.stats(&m);
     let mut stored = None;
     if let Some(c) = cache.cache() {
-        let key = wavefront::accel::cache::CacheKey::new(method, &[&bytes]);
-        let entry = wavefront::accel::cache::CachedTree {
-            origin: frame.origin,
-            positions: obj.positions,
-            indices: obj.indices,
-            mesh_triangles: vec![m.len() as u64],
-            tree,
-        };
+        let key = wavefront::world::cache_key(method, &[bytes], &[sources]);
         match c.store(key, &entry) {
             Ok(path) => stored = Some(path),
             Err(e) => eprintln!(

@@ -152,3 +152,27 @@ fn the_tree_cache_key_follows_a_gltf_files_external_buffer() {
         std::fs::read(dir.join("d.png")).unwrap()
     );
 }
+
+/// Regression (session 8): `kdtree build` keyed a PLY's entry by its bytes alone while a render
+/// keys it by format tag and bytes (the same bytes read as another format are another mesh), so
+/// a render never hit what `kdtree build` stored. Both now take the key from one function.
+#[test]
+fn a_ply_tree_from_kdtree_build_is_the_entry_a_render_hits() {
+    let dir = Scratch::new("ply-kdtree-cache");
+    let mesh = PolyMesh::bumpy(9);
+    std::fs::write(dir.join("m.ply"), mesh.ply(PlyEncoding::LittleEndian)).unwrap();
+    dir.write("ply.toml", &scene("m.ply", "geometric"));
+    ok(&run(
+        &dir,
+        &["kdtree", "build", "m.ply", "-o", "m.kd", "--cache", "cache"],
+    ));
+    let o = run(
+        &dir,
+        &[
+            "render", "ply.toml", "-o", "p.png", "--cache", "cache", "--stats",
+        ],
+    );
+    ok(&o);
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("cache: Hit"), "{stdout}");
+}
