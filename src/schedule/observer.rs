@@ -5,8 +5,7 @@
 use std::time::Duration;
 
 use super::stage::Stage;
-use crate::film::SampleBuffer;
-use crate::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
+use crate::queue::{HitColumns, HitQueue, RayQueue, SampleBuffer, ShadowQueue};
 use crate::wave::Wave;
 
 /// The queues of the current wave, as a stage finds them (`before`) or leaves them (`after`).

@@ -857,16 +857,16 @@ mod tests {
         }
         let d1 = bench.snapshot.depth(1).unwrap().clone();
         bench.run(Stage::Intersect, 1);
-        assert_eq!(bench.queues().closest.prim, d1.closest.prim);
-        assert_eq!(bench.queues().hits.slot, d1.hits.slot);
+        assert_eq!(bench.queues().closest.prim(), d1.closest.prim());
+        assert_eq!(bench.queues().hits.slot(), d1.hits.slot());
         bench.run(Stage::Shadow, 1);
         let shadows = d1.shadows.as_ref().unwrap();
-        assert_eq!(bench.queues().shadows.occluded, shadows.occluded);
+        assert_eq!(bench.queues().shadows.occluded(), shadows.occluded());
         bench.run(Stage::Reflect, 0);
-        assert_eq!(bench.queues().next.direction, d1.rays.direction);
+        assert_eq!(bench.queues().next.direction(), d1.rays.direction());
         bench.run(Stage::Shade, 1);
-        assert_eq!(bench.queues().hits.normal, d1.hits.normal);
-        assert_eq!(bench.queues().shadows.radiance, shadows.radiance);
+        assert_eq!(bench.queues().hits.normal(), d1.hits.normal());
+        assert_eq!(bench.queues().shadows.radiance(), shadows.radiance());
     }
 
     #[test]
