@@ -426,7 +426,7 @@ fn poisoned_rays_leave_the_pipeline_without_disturbing_others() {
             f32::INFINITY
         ));
     }
-    assert!(a.prim.iter().filter(|p| p.is_hit()).count() > 32);
+    assert!(a.prim().iter().filter(|p| p.is_hit()).count() > 32);
 }
 
 #[test]

@@ -7,7 +7,7 @@
 //! same field list, its [`Column`] descriptors (queue, name, bytes per row), which the stage
 //! registry ([`crate::schedule::stage`]) collects: the registry cannot disagree with the
 //! signatures because both come from one declaration. Each stage declares its kernels with
-//! [`kernels!`](crate::kernels), naming each kernel's column sets: the registry takes kernel
+//! [`kernels!`](crate::kernels!), naming each kernel's column sets: the registry takes kernel
 //! names and columns from there.
 
 /// One column of a queue: which queue, which column, how many bytes per row.
@@ -123,15 +123,16 @@ macro_rules! kernels {
 }
 
 /// Declares a column set: a struct borrowing some columns of one queue (declared with
-/// [`queue!`](crate::queue!)), plus its [`ColumnAccess`] list (`COLUMNS`) and a constructor
-/// `of(queue)`.
+/// [`queue!`](crate::queue!)), plus its [`ColumnAccess`](crate::queue::ColumnAccess) list
+/// (`COLUMNS`) and a constructor `of(queue)`.
 ///
 /// Two forms:
 /// - `struct S<'a>: read Queue { a: T, … }` — every column read: fields are `&'a [T]`, and
 ///   `of(&'a Queue)`.
 /// - `struct S<'a>: Queue { read a: T, write b: U, … }` — each column read (`&'a [T]`) or written
 ///   in place (`&'a mut [U]`, every row of the queue): `of(&'a mut Queue)`; the set is a
-///   [`ColumnSet`], so a kernel that sizes the queue takes it as [`Resize<S>`](Resize).
+///   [`ColumnSet`](crate::queue::ColumnSet), so a kernel that sizes the queue takes it as
+///   [`Resize<S>`](crate::queue::Resize).
 ///
 /// Columns are slices either way: a kernel changes rows, never a column's length.
 #[macro_export]

@@ -73,7 +73,7 @@ pub trait Queue: Default {
 ///
 /// Generated on the queue: `len`, `is_empty`, `clear`, `resize(n)`, `reset(n)` (`n` default
 /// rows), `push(row)`, `get(i)`, `capacity`, a read accessor per column returning its slice,
-/// `columns`, `columns_mut`, and through [`Queue`] `NAME`, `COLUMNS`, `ROW_BYTES`,
+/// `columns`, `columns_mut`, and through [`Queue`](crate::queue::Queue) `NAME`, `COLUMNS`, `ROW_BYTES`,
 /// `column_lens`.
 #[macro_export]
 macro_rules! queue {
