@@ -19,10 +19,15 @@
 //!     /// One row of `Pairs`.
 //!     pub struct Pair;
 //! }
+//! wavefront::column_set! {
+//!     /// Writes points.
+//!     pub struct Points<'a>: Pairs { write point: Vec3 }
+//! }
 //! let mut q = Pairs::default();
-//! q.push(Pair { point: Vec3::ONE, count: 3 });
+//! q.push(Pair { point: Vec3::ZERO, count: 3 });
+//! Points::of(&mut q).point[0] = Vec3::ONE;
 //! q.resize(4);
-//! assert_eq!((q.len(), q.count(), q.get(0).count), (4, &[3, 0, 0, 0][..], 3));
+//! assert_eq!((q.len(), q.count(), q.get(0).point), (4, &[3, 0, 0, 0][..], Vec3::ONE));
 //! assert_eq!(Pairs::ROW_BYTES, 16);
 //! ```
 //!
@@ -33,8 +38,13 @@
 //! use glam::Vec3;
 //! wavefront::queue! {
 //!     /// Two columns.
-//!     pub struct Pairs { point: Vec3, count: u32 }
-//!     /// A row.
+//!     pub struct Pairs {
+//!         /// A point.
+//!         point: Vec3,
+//!         /// A count.
+//!         count: u32,
+//!     }
+//!     /// One row of `Pairs`.
 //!     pub struct Pair;
 //! }
 //! wavefront::column_set! {
@@ -57,6 +67,11 @@ pub trait Queue: Default {
 
     /// Number of rows (of every column).
     fn len(&self) -> usize;
+
+    /// True when the queue holds no rows.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
 
     /// Sets every column to `n` rows: rows past `n` are dropped, new rows are the columns'
     /// defaults (a kernel that sizes a queue overwrites the rows it writes).
