@@ -23,14 +23,14 @@ struct Capture {
 impl Observer for Capture {
     fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
         if run.stage == Stage::Intersect && run.depth == 0 {
-            self.cam.0.extend_from_slice(&q.rays.origin);
-            self.cam.1.extend_from_slice(&q.rays.direction);
-            self.cam.2.extend_from_slice(&q.rays.t_max);
+            self.cam.0.extend_from_slice(q.rays.origin());
+            self.cam.1.extend_from_slice(q.rays.direction());
+            self.cam.2.extend_from_slice(q.rays.t_max());
         }
         if run.stage == Stage::Shadow && run.depth == 0 {
-            self.shadow.0.extend_from_slice(&q.shadows.origin);
-            self.shadow.1.extend_from_slice(&q.shadows.direction);
-            self.shadow.2.extend_from_slice(&q.shadows.t_max);
+            self.shadow.0.extend_from_slice(q.shadows.origin());
+            self.shadow.1.extend_from_slice(q.shadows.direction());
+            self.shadow.2.extend_from_slice(q.shadows.t_max());
         }
     }
 }

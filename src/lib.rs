@@ -19,7 +19,7 @@
 //!                                               └─────────┘
 //! ```
 //!
-//! Rays are entities, SoA columns ([`queue`]) are components, stages ([`stages`]) are systems, and
+//! Rays are entities, SoA columns ([`queue`](mod@queue)) are components, stages ([`stages`]) are systems, and
 //! one schedule ([`schedule`]) orders them. Each scene gets only the stages it needs
 //! ([`schedule::Pipeline`]). Images are bit-identical for any thread count: every queue stays in
 //! sample order and every sample is accumulated in schedule order.

@@ -14,7 +14,7 @@ use rayon::prelude::*;
 use crate::queue::lanes::store3;
 use crate::queue::region::Region;
 use crate::queue::wave::Wave;
-use crate::queue::{MIN_CHUNK, RayItem, RayQueue, SampleSlot};
+use crate::queue::{MIN_CHUNK, RayItem, RayQueue, Resize, SampleSlot};
 use crate::sampling::{Strata, uniform};
 use crate::scene::{Camera, ImageSettings};
 use crate::simd::{Kernel, Level, dispatch};
@@ -28,6 +28,11 @@ crate::column_set! {
         write weight: Vec3,
         write slot: SampleSlot,
     }
+}
+
+crate::kernels! {
+    /// The stage's kernels, in the order the schedule calls them.
+    pub const KERNELS = [generate_camera_rays(CameraRays)];
 }
 
 /// The primary ray of slot `slot` in `wave`: the per-row body of the kernel. `strata` is
@@ -178,7 +183,7 @@ pub fn generate_camera_rays(
     camera: &Camera,
     image: &ImageSettings,
     wave: &Wave,
-    out: CameraRays<'_>,
+    out: Resize<CameraRays<'_>>,
 ) {
     generate_at(Level::current(), camera, image, wave, out);
 }
@@ -189,7 +194,7 @@ fn generate_at(
     camera: &Camera,
     image: &ImageSettings,
     wave: &Wave,
-    out: CameraRays<'_>,
+    out: Resize<CameraRays<'_>>,
 ) {
     let n = wave.len();
     let strata = Strata::new(wave.samples);
@@ -197,9 +202,9 @@ fn generate_at(
     let (stratum_x, stratum_y): (Vec<f32>, Vec<f32>) = (0..wave.samples.max(1))
         .map(|s| ((s % k) as f32, (s / k) as f32))
         .unzip();
-    // The kernel writes every row: only rows the column did not have yet are initialised.
-    out.direction.truncate(n);
-    out.direction.resize(n, Vec3::ZERO);
+    // The kernel writes every row of every column (only rows the queue did not have yet were
+    // initialised by the resize).
+    let out = out.resize(n);
     out.direction
         .par_chunks_mut(MIN_CHUNK)
         .enumerate()
@@ -216,19 +221,18 @@ fn generate_at(
             };
             dispatch(level, kernel);
         });
-    // Constant columns, overwritten in place (only rows the columns did not have are added).
-    fill_splat(out.origin, n, 0.0); // the eye: the render frame's origin
-    out.t_max.resize(n, f32::INFINITY);
+    // Constant columns, overwritten in place.
+    fill_splat(out.origin, 0.0); // the eye: the render frame's origin
     out.t_max.fill(f32::INFINITY);
-    fill_splat(out.weight, n, 1.0);
-    out.slot.clear();
-    out.slot.extend((0..n as u32).map(SampleSlot));
+    fill_splat(out.weight, 1.0);
+    for (i, s) in out.slot.iter_mut().enumerate() {
+        *s = SampleSlot(i as u32);
+    }
 }
 
-/// Sets `column` to `n` rows of `Vec3::splat(value)`, written as a run of plain `f32`s: vector
-/// stores, where `Vec::resize` writes the 12-byte rows one by one.
-fn fill_splat(column: &mut Vec<Vec3>, n: usize, value: f32) {
-    column.resize(n, Vec3::splat(value));
+/// Sets every row of `column` to `Vec3::splat(value)`, written as a run of plain `f32`s: vector
+/// stores, where a fill of `Vec3` writes the 12-byte rows one by one.
+fn fill_splat(column: &mut [Vec3], value: f32) {
     bytemuck::cast_slice_mut::<Vec3, f32>(column).fill(value);
 }
 
@@ -242,12 +246,17 @@ mod tests {
         let scene = spheres();
         let wave = Wave::of_image(512, 512, 512 * 256, 3, 4);
         let mut q = RayQueue::default();
-        generate_camera_rays(&scene.camera, &scene.image, &wave, CameraRays::of(&mut q));
+        generate_camera_rays(
+            &scene.camera,
+            &scene.image,
+            &wave,
+            CameraRays::resizing(&mut q),
+        );
         assert_eq!(q.len(), 12);
-        assert_eq!(q.origin.len(), 12);
-        assert_eq!(q.weight[5], Vec3::ONE);
-        assert_eq!(q.slot, (0..12).map(SampleSlot).collect::<Vec<_>>());
-        for d in &q.direction {
+        assert_eq!(q.origin().len(), 12);
+        assert_eq!(q.weight()[5], Vec3::ONE);
+        assert_eq!(q.slot(), (0..12).map(SampleSlot).collect::<Vec<_>>());
+        for d in q.direction() {
             assert!((d.length() - 1.0).abs() < 1e-6);
             assert!(d.z < 0.0, "scene A looks down -z");
         }
@@ -304,9 +313,15 @@ mod tests {
             let strata = Strata::new(wave.samples);
             for level in Level::supported() {
                 let mut q = RayQueue::default();
-                generate_at(level, &scene.camera, image, &wave, CameraRays::of(&mut q));
+                generate_at(
+                    level,
+                    &scene.camera,
+                    image,
+                    &wave,
+                    CameraRays::resizing(&mut q),
+                );
                 assert_eq!(q.len(), wave.len());
-                for (s, d) in q.direction.iter().enumerate() {
+                for (s, d) in q.direction().iter().enumerate() {
                     let r = camera_ray(&scene.camera, image, &wave, &strata, SampleSlot(s as u32));
                     let bits = |v: Vec3| v.to_array().map(f32::to_bits);
                     assert_eq!(

@@ -9,8 +9,10 @@
 use glam::Vec3;
 use rayon::prelude::*;
 
-use crate::queue::compact::{count_chunks, split_by_counts};
-use crate::queue::{HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue, SampleSlot, TRACE_CHUNK};
+use crate::queue::compact::{compact, count_chunks};
+use crate::queue::{
+    HitColumns, HitQueue, MIN_CHUNK, PrimId, RayQueue, Resize, SampleSlot, TRACE_CHUNK,
+};
 use crate::world::World;
 
 crate::column_set! {
@@ -50,15 +52,22 @@ crate::column_set! {
     }
 }
 
+crate::kernels! {
+    /// The stage's kernels, in the order the schedule calls them.
+    pub const KERNELS = [
+        intersect_closest(ClosestRays, ClosestOut),
+        compact_hits(CompactRays, CompactHits, CompactOut),
+    ];
+}
+
 /// Closest hit of every ray (one row per ray). Chunks of up to [`TRACE_CHUNK`] rays go through
 /// [`World::intersect_closest_batch`] (camera rays as frusta of screen tiles, others as packets
 /// of consecutive, coherent rays); on several threads a mesh-only world's small queue goes in
 /// one call, which spreads its frusta over the threads.
-pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: ClosestOut<'_>) {
+pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: Resize<ClosestOut<'_>>) {
     let n = rays.origin.len();
-    // Every row is overwritten below: only a growing column needs filling.
-    out.t.resize(n, f32::INFINITY);
-    out.prim.resize(n, PrimId::NONE);
+    // Every row is overwritten below.
+    let out = out.resize(n);
     // On one thread, whole chunks (the frusta find more coherent neighbours in them). On
     // several, a small queue (fewer than 4 chunks per thread) of a mesh-only world with the
     // watertight test goes in one call: the kD tree regroups it in chunks of the same size and
@@ -100,7 +109,7 @@ pub fn compact_hits(
     rays: CompactRays<'_>,
     hits: CompactHits<'_>,
     counts: &mut Vec<usize>,
-    out: CompactOut<'_>,
+    out: Resize<CompactOut<'_>>,
 ) {
     let prim = hits.prim;
     count_chunks(
@@ -109,33 +118,19 @@ pub fn compact_hits(
         |r| prim[r].iter().filter(|p| p.is_hit()).count(),
         counts,
     );
-    (
-        (
-            split_by_counts(out.origin, counts),
-            split_by_counts(out.direction, counts),
-            split_by_counts(out.weight, counts),
-        ),
-        (
-            split_by_counts(out.slot, counts),
-            split_by_counts(out.t, counts),
-            split_by_counts(out.prim, counts),
-        ),
-    )
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(c, ((origin, direction, weight), (slot, t, out_prim)))| {
-            let first = c * MIN_CHUNK;
-            let rows = first..(first + MIN_CHUNK).min(prim.len());
-            let mut j = 0;
-            for i in rows {
-                if prim[i].is_hit() {
-                    (origin[j], direction[j]) = (rays.origin[i], rays.direction[i]);
-                    (weight[j], slot[j]) = (rays.weight[i], rays.slot[i]);
-                    (t[j], out_prim[j]) = (hits.t[i], prim[i]);
-                    j += 1;
-                }
+    compact(out, counts, |c, out| {
+        let first = c * MIN_CHUNK;
+        let rows = first..(first + MIN_CHUNK).min(prim.len());
+        let mut j = 0;
+        for i in rows {
+            if prim[i].is_hit() {
+                (out.origin[j], out.direction[j]) = (rays.origin[i], rays.direction[i]);
+                (out.weight[j], out.slot[j]) = (rays.weight[i], rays.slot[i]);
+                (out.t[j], out.prim[j]) = (hits.t[i], prim[i]);
+                j += 1;
             }
-        });
+        }
+    });
 }
 
 #[cfg(test)]
@@ -161,26 +156,33 @@ mod tests {
         rays.push(towards(2, Vec3::new(-4.0, 0.0, -7.0))); // red sphere S1
         rays.push(towards(3, Vec3::new(0.0, -1.0, 0.0))); // floor, t = 2
         let mut hits = HitColumns::default();
-        intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut hits));
+        intersect_closest(
+            &world,
+            ClosestRays::of(&rays),
+            ClosestOut::resizing(&mut hits),
+        );
         assert_eq!(
-            hits.prim,
+            hits.prim(),
             vec![PrimId(1), PrimId::NONE, PrimId(0), PrimId(3)]
         );
-        assert_eq!(hits.t[0], 5.0);
-        assert_eq!(hits.t[1], f32::INFINITY);
-        assert_eq!(hits.t[3], 2.0);
+        assert_eq!(hits.t()[0], 5.0);
+        assert_eq!(hits.t()[1], f32::INFINITY);
+        assert_eq!(hits.t()[3], 2.0);
 
         let mut out = HitQueue::default();
         compact_hits(
             CompactRays::of(&rays),
             CompactHits::of(&hits),
             &mut vec![],
-            CompactOut::of(&mut out),
+            CompactOut::resizing(&mut out),
         );
-        assert_eq!(out.slot, vec![SampleSlot(0), SampleSlot(2), SampleSlot(3)]);
-        assert_eq!(out.prim, vec![PrimId(1), PrimId(0), PrimId(3)]);
-        assert_eq!(out.weight[2], Vec3::splat(3.0));
-        assert_eq!(out.t[2], 2.0);
+        assert_eq!(
+            out.slot(),
+            vec![SampleSlot(0), SampleSlot(2), SampleSlot(3)]
+        );
+        assert_eq!(out.prim(), vec![PrimId(1), PrimId(0), PrimId(3)]);
+        assert_eq!(out.weight()[2], Vec3::splat(3.0));
+        assert_eq!(out.t()[2], 2.0);
     }
 
     #[test]
@@ -205,9 +207,13 @@ mod tests {
             });
         }
         let mut hits = HitColumns::default();
-        intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut hits));
+        intersect_closest(
+            &world,
+            ClosestRays::of(&rays),
+            ClosestOut::resizing(&mut hits),
+        );
         assert_eq!(
-            hits.prim,
+            hits.prim(),
             vec![PrimId::NONE, PrimId(1), PrimId::NONE, PrimId::NONE]
         );
     }

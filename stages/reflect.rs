@@ -5,10 +5,9 @@
 //! Writes: [`NextRays`] — the next depth's `RayQueue` (compacted, slot order), weight `weight·α`.
 
 use glam::Vec3;
-use rayon::prelude::*;
 
-use crate::queue::compact::{count_chunks, split_by_counts};
-use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue, SampleSlot};
+use crate::queue::compact::{compact, count_chunks};
+use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue, Resize, SampleSlot};
 use crate::world::World;
 
 crate::column_set! {
@@ -34,6 +33,11 @@ crate::column_set! {
     }
 }
 
+crate::kernels! {
+    /// The stage's kernels, in the order the schedule calls them.
+    pub const KERNELS = [spawn_reflection_rays(ReflectHits, NextRays)];
+}
+
 /// The reflection of hit row `i` about its shading normal, `r = d − 2(d·n)n`, from the offset hit
 /// point (the geometric surface's), weight `weight·α`.
 #[inline]
@@ -56,7 +60,7 @@ pub fn spawn_reflection_rays(
     world: &World,
     hits: ReflectHits<'_>,
     counts: &mut Vec<usize>,
-    next: NextRays<'_>,
+    next: Resize<NextRays<'_>>,
 ) {
     let materials = world.materials();
     let material = hits.material;
@@ -67,27 +71,18 @@ pub fn spawn_reflection_rays(
         |r| r.filter(|&i| reflects(i)).count(),
         counts,
     );
-    (
-        split_by_counts(next.origin, counts),
-        split_by_counts(next.direction, counts),
-        split_by_counts(next.t_max, counts),
-        split_by_counts(next.weight, counts),
-        split_by_counts(next.slot, counts),
-    )
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(c, (origin, direction, t_max, weight, slot))| {
-            let first = c * MIN_CHUNK;
-            let mut j = 0;
-            for i in first..(first + MIN_CHUNK).min(material.len()) {
-                if reflects(i) {
-                    let r = reflection_ray(world, &hits, i);
-                    (origin[j], direction[j], t_max[j]) = (r.origin, r.direction, r.t_max);
-                    (weight[j], slot[j]) = (r.weight, r.slot);
-                    j += 1;
-                }
+    compact(next, counts, |c, out| {
+        let first = c * MIN_CHUNK;
+        let mut j = 0;
+        for i in first..(first + MIN_CHUNK).min(material.len()) {
+            if reflects(i) {
+                let r = reflection_ray(world, &hits, i);
+                (out.origin[j], out.direction[j], out.t_max[j]) = (r.origin, r.direction, r.t_max);
+                (out.weight[j], out.slot[j]) = (r.weight, r.slot);
+                j += 1;
             }
-        });
+        }
+    });
 }
 
 #[cfg(test)]
@@ -113,24 +108,27 @@ mod tests {
         .into_iter()
         .enumerate()
         {
-            hits.origin.push(Vec3::ZERO);
-            hits.direction.push(d);
-            hits.weight.push(Vec3::splat(0.8));
-            hits.slot.push(SampleSlot(10 + s as u32));
-            hits.t.push(1.0);
-            hits.prim.push(PrimId(0));
-            hits.point.push(p);
-            hits.spawn.push(p + 1e-5 * n);
-            hits.normal.push(n);
-            hits.shading.push(n);
-            hits.material.push(m);
+            hits.push(crate::queue::HitItem {
+                origin: Vec3::ZERO,
+                direction: d,
+                weight: Vec3::splat(0.8),
+                slot: SampleSlot(10 + s as u32),
+                t: 1.0,
+                prim: PrimId(0),
+                point: p,
+                normal: n,
+                material: m,
+                spawn: p + 1e-5 * n,
+                shading: n,
+                emitted: Vec3::ZERO,
+            });
         }
         let mut next = RayQueue::default();
         spawn_reflection_rays(
             &world,
             ReflectHits::of(&hits),
             &mut vec![],
-            NextRays::of(&mut next),
+            NextRays::resizing(&mut next),
         );
         assert_eq!(next.len(), 1);
         let r = next.get(0);

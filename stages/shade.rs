@@ -22,12 +22,11 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::arith;
-use crate::film::SampleBuffer;
 use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
-use crate::queue::compact::split_by_counts;
+use crate::queue::compact::compact;
 use crate::queue::lanes::{load3, store3};
-use crate::queue::{HitQueue, MIN_CHUNK, PrimId, SampleSlot, ShadowQueue};
+use crate::queue::{HitQueue, MIN_CHUNK, PrimId, Resize, SampleSlot, Samples, ShadowQueue};
 use crate::scene::{Material, Scene};
 use crate::simd::{Kernel, Level, dispatch};
 use crate::world::frame::{Emission, Light};
@@ -85,9 +84,18 @@ crate::column_set! {
     pub struct EmittedHits<'a>: read HitQueue { slot: SampleSlot, emitted: Vec3 }
 }
 
-crate::column_set! {
-    /// What `add_emitted` and the shadow stage's `add_unoccluded` write: the wave's samples.
-    pub struct Samples<'a>: SampleBuffer { write radiance: Vec3 }
+crate::kernels! {
+    /// The stage's kernels, in the order the schedule calls them.
+    pub const KERNELS = [
+        shade_hits(ShadeHits),
+        add_emitted(EmittedHits, Samples),
+        spawn_shadow_rays(ShadedHits, ShadowRays),
+    ];
+}
+
+crate::kernels! {
+    /// The kernels of the stage's hit-mask variant, in order.
+    pub const MASK_KERNELS = [shade_hit_mask(MaskHits), add_emitted(EmittedHits, Samples)];
 }
 
 /// What the shade kernel needs besides the world.
@@ -257,13 +265,6 @@ pub struct ShadeScratch {
 /// rows goes through [`World::surface_batch`] (the SIMD surface kernel) and then the emitted
 /// radiance of its rows.
 pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
-    let n = hits.prim.len();
-    hits.point.resize(n, Vec3::ZERO);
-    hits.normal.resize(n, Vec3::ZERO);
-    hits.material.resize(n, 0);
-    hits.spawn.resize(n, Vec3::ZERO);
-    hits.shading.resize(n, Vec3::ZERO);
-    hits.emitted.resize(n, Vec3::ZERO);
     let (prim, origin, direction, t, weight) =
         (hits.prim, hits.origin, hits.direction, hits.t, hits.weight);
     (
@@ -679,7 +680,7 @@ pub fn spawn_shadow_rays(
     pass: &ShadowPass,
     hits: ShadedHits<'_>,
     scratch: &mut ShadeScratch,
-    shadows: ShadowRays<'_>,
+    shadows: Resize<ShadowRays<'_>>,
 ) {
     spawn_shadow_rays_at(
         Level::current(),
@@ -700,7 +701,7 @@ fn spawn_shadow_rays_at(
     pass: &ShadowPass,
     hits: ShadedHits<'_>,
     scratch: &mut ShadeScratch,
-    shadows: ShadowRays<'_>,
+    shadows: Resize<ShadowRays<'_>>,
 ) {
     let lights = &world.lights()[pass.lights.clone()];
     let per_hit = lights.len().max(1);
@@ -732,42 +733,32 @@ fn spawn_shadow_rays_at(
         .collect_into_vec(&mut scratch.counts);
     let counts = &scratch.counts;
     let radiance = &scratch.radiance;
-    (
-        split_by_counts(shadows.origin, counts),
-        split_by_counts(shadows.direction, counts),
-        split_by_counts(shadows.t_max, counts),
-        split_by_counts(shadows.radiance, counts),
-        split_by_counts(shadows.slot, counts),
-    )
-        .into_par_iter()
-        .enumerate()
-        .for_each(|(c, (origin, direction, t_max, out_radiance, slot))| {
-            let first = r.start + c * chunk;
-            let rows = &radiance[c * chunk * per_hit..((c + 1) * chunk * per_hit).min(rows)];
-            let kernel = ShadowRayKernel {
-                hits,
-                lights,
-                hits_range: first..first + rows.len() / per_hit,
-                radiance: rows,
-                origin,
-                direction,
-                t_max,
-                out_radiance,
-                slot,
-            };
-            dispatch(level, kernel);
-        });
+    compact(shadows, counts, |c, out| {
+        let first = r.start + c * chunk;
+        let rows = &radiance[c * chunk * per_hit..((c + 1) * chunk * per_hit).min(rows)];
+        let kernel = ShadowRayKernel {
+            hits,
+            lights,
+            hits_range: first..first + rows.len() / per_hit,
+            radiance: rows,
+            origin: out.origin,
+            direction: out.direction,
+            t_max: out.t_max,
+            out_radiance: out.radiance,
+            slot: out.slot,
+        };
+        dispatch(level, kernel);
+    });
 }
 
 /// The hit/miss mask variant of shade: every hit emits its weight (white for primary rays).
 pub fn shade_hit_mask(hits: MaskHits<'_>) {
-    hits.emitted.clear();
-    hits.emitted.extend_from_slice(hits.weight);
+    hits.emitted.copy_from_slice(hits.weight);
 }
 
 /// Adds each hit's `emitted` radiance to its sample (in slot order: deterministic).
 pub fn add_emitted(hits: EmittedHits<'_>, samples: Samples<'_>) {
-    crate::film::add_sorted(samples.radiance, hits.slot, hits.emitted, |_| true);
+    crate::queue::add_sorted(samples.radiance, hits.slot, hits.emitted, |_| true);
 }
 
 #[cfg(test)]
@@ -787,14 +778,22 @@ mod tests {
         for (s, d) in dirs.into_iter().enumerate() {
             let d = d.normalize();
             let (t, prim) = world.intersect_closest(Vec3::ZERO, d, f32::INFINITY);
-            q.origin.push(Vec3::ZERO);
-            q.direction.push(d);
-            q.weight.push(Vec3::ONE);
-            q.slot.push(SampleSlot(s as u32));
-            q.t.push(t);
-            q.prim.push(prim);
+            q.push(crate::queue::HitItem {
+                origin: Vec3::ZERO,
+                direction: d,
+                weight: Vec3::ONE,
+                slot: SampleSlot(s as u32),
+                t,
+                prim,
+                point: Vec3::ZERO,
+                normal: Vec3::ZERO,
+                material: 0,
+                spawn: Vec3::ZERO,
+                shading: Vec3::ZERO,
+                emitted: Vec3::ZERO,
+            });
         }
-        assert_eq!(q.prim, vec![PrimId(1), PrimId(3), PrimId(2)]);
+        assert_eq!(q.prim(), vec![PrimId(1), PrimId(3), PrimId(2)]);
         q
     }
 
@@ -817,7 +816,7 @@ mod tests {
                 &pass,
                 ShadedHits::of(hits),
                 &mut ShadeScratch::default(),
-                ShadowRays::of(shadows),
+                ShadowRays::resizing(shadows),
             );
         }
     }
@@ -831,7 +830,7 @@ mod tests {
         let mut hits = scene_a_hits(&world);
         let mut shadows = ShadowQueue::default();
         shade_in_one_pass(&world, &settings, &mut hits, &mut shadows);
-        let emitted = &hits.emitted;
+        let emitted = hits.emitted();
         assert!(shadows.is_empty());
         assert_eq!(emitted.len(), 3);
         // Green sphere facing the camera at (0, 0, -5), normal +z; light at (-4, 4, -3).
@@ -845,8 +844,8 @@ mod tests {
             "{} vs {expected}",
             emitted[0]
         );
-        assert_eq!(hits.normal[0], Vec3::Z);
-        assert_eq!(hits.material, vec![2, 0, 3]);
+        assert_eq!(hits.normal()[0], Vec3::Z);
+        assert_eq!(hits.material(), vec![2, 0, 3]);
         // The floor reflects half: (1 − 0.5)·(0.2 + n·l).
         let p = Vec3::new(0.0, -2.0, 0.0);
         let l = (Vec3::new(-4.0, 4.0, -3.0) - p).normalize();
@@ -861,12 +860,12 @@ mod tests {
         let mut hits = scene_a_hits(&world);
         let mut shadows = ShadowQueue::default();
         shade_in_one_pass(&world, &settings, &mut hits, &mut shadows);
-        let emitted = &hits.emitted;
+        let emitted = hits.emitted();
         assert_eq!(emitted[0], Vec3::new(0.0, 0.2, 0.0), "ambient only");
         assert_eq!(emitted[1], Vec3::splat(0.1), "(1 − α)·ka");
         assert_eq!(shadows.len(), 3, "every hit here faces the light");
         assert_eq!(
-            shadows.slot,
+            shadows.slot(),
             vec![SampleSlot(0), SampleSlot(1), SampleSlot(2)]
         );
         let s = shadows.get(1);
@@ -892,7 +891,7 @@ mod tests {
         let mut shadows = ShadowQueue::default();
         shade_in_one_pass(&world, &settings, &mut hits, &mut shadows);
         assert!(
-            shadows.slot.iter().all(|&s| s != SampleSlot(1)),
+            shadows.slot().iter().all(|&s| s != SampleSlot(1)),
             "floor hit is lit from behind"
         );
     }
@@ -961,7 +960,7 @@ mod tests {
                 &pass,
                 ShadedHits::of(&hits),
                 &mut ShadeScratch::default(),
-                ShadowRays::of(&mut part),
+                ShadowRays::resizing(&mut part),
             );
             rows.extend((0..part.len()).map(|i| part.get(i)));
         }
@@ -969,11 +968,11 @@ mod tests {
         for r in rows {
             joined.push(r);
         }
-        assert_eq!(joined.slot, whole.slot);
-        assert_eq!(joined.origin, whole.origin);
-        assert_eq!(joined.direction, whole.direction);
-        assert_eq!(joined.t_max, whole.t_max);
-        assert_eq!(joined.radiance, whole.radiance);
+        assert_eq!(joined.slot(), whole.slot());
+        assert_eq!(joined.origin(), whole.origin());
+        assert_eq!(joined.direction(), whole.direction());
+        assert_eq!(joined.t_max(), whole.t_max());
+        assert_eq!(joined.radiance(), whole.radiance());
     }
 
     /// Light sets for the kernel test: scene A's light; three point lights; and each SPEC §14
@@ -1061,17 +1060,23 @@ mod tests {
                 });
             }
             let mut closest = crate::queue::HitColumns::default();
-            intersect_closest(&world, ClosestRays::of(&rays), ClosestOut::of(&mut closest));
+            intersect_closest(
+                &world,
+                ClosestRays::of(&rays),
+                ClosestOut::resizing(&mut closest),
+            );
             let mut hits = HitQueue::default();
             compact_hits(
                 CompactRays::of(&rays),
                 CompactHits::of(&closest),
                 &mut vec![],
-                CompactOut::of(&mut hits),
+                CompactOut::resizing(&mut hits),
             );
             shade_hits(&world, &settings, ShadeHits::of(&mut hits));
             let mut expected = vec![];
-            for h in 0..hits.len() {
+            let hits_q = &hits;
+            let hits = hits_q.columns();
+            for h in 0..hits_q.len() {
                 let m = &world.materials()[hits.material[h] as usize];
                 for light in world.lights() {
                     let v = shadow_radiance(
@@ -1089,7 +1094,7 @@ mod tests {
             }
             assert!(!expected.is_empty(), "{lights} lights: no lit row");
             // The spots' cones cross the hits: some rows in a penumbra (0 < factor < 1).
-            let partial = (0..hits.len())
+            let partial = (0..hits_q.len())
                 .filter(|&h| {
                     world.lights().iter().any(|l| {
                         let soft = matches!(l.emission, Emission::Spot { inner, outer, .. } if inner < outer);
@@ -1107,7 +1112,7 @@ mod tests {
             for level in Level::supported() {
                 for budget in [usize::MAX, 1000] {
                     let mut got = vec![];
-                    let passes = crate::schedule::shadow_passes(hits.len(), lights, budget);
+                    let passes = crate::schedule::shadow_passes(hits_q.len(), lights, budget);
                     let mut all: Vec<_> = passes.collect();
                     // Passes run light block by light block; order rows as (hit, light).
                     all.sort_by_key(|p| p.lights.start);
@@ -1118,13 +1123,14 @@ mod tests {
                             &world,
                             &settings,
                             &pass,
-                            ShadedHits::of(&hits),
+                            ShadedHits::of(hits_q),
                             &mut ShadeScratch::default(),
-                            ShadowRays::of(&mut q),
+                            ShadowRays::resizing(&mut q),
                         );
                         for i in 0..q.len() {
-                            let row = (q.origin[i], q.direction[i], q.t_max[i], q.radiance[i]);
-                            got.push((row, q.slot[i], pass.lights.start));
+                            let r = q.get(i);
+                            let row = (r.origin, r.direction, r.t_max, r.radiance);
+                            got.push((row, r.slot, pass.lights.start));
                         }
                     }
                     got.sort_by_key(|&(_, slot, light)| (slot, light));

@@ -3,14 +3,13 @@
 //!
 //! Reads: [`ShadowTrace`]' read columns (`ShadowQueue.{origin, direction, t_max}`); then
 //! [`LitRays`] (`ShadowQueue.{slot, radiance, occluded}`).
-//! Writes: `ShadowQueue.occluded` (one flag per row); the samples of the unoccluded rows.
+//! Writes: `ShadowQueue.occluded` (one flag per row, in place: shade sized the queue); the samples of the unoccluded rows.
 
 use glam::Vec3;
 use rayon::prelude::*;
 
 use crate::accel::kdtree::KdAccel;
-use crate::queue::{MIN_CHUNK, SampleSlot, ShadowQueue};
-use crate::stages::shade::Samples;
+use crate::queue::{MIN_CHUNK, SampleSlot, Samples, ShadowQueue};
 use crate::world::World;
 
 crate::column_set! {
@@ -28,15 +27,20 @@ crate::column_set! {
     pub struct LitRays<'a>: read ShadowQueue { slot: SampleSlot, radiance: Vec3, occluded: bool }
 }
 
+crate::kernels! {
+    /// The stage's kernels, in the order the schedule calls them.
+    pub const KERNELS = [
+        intersect_occluded(ShadowTrace),
+        add_unoccluded(LitRays, Samples),
+    ];
+}
+
 /// Whether each shadow ray is blocked by anything strictly between its origin and its light.
 /// Chunks of rays go through [`World::intersect_occluded_batch`] (a mesh's shadow rays are traced
 /// from their light as bundles: chunks of [`KdAccel::OCCLUDED_BATCH`] rays give them coherent
 /// neighbours to bundle with).
 pub fn intersect_occluded(world: &World, rays: ShadowTrace<'_>) {
-    let n = rays.origin.len();
     let chunk = KdAccel::OCCLUDED_BATCH.max(MIN_CHUNK);
-    rays.occluded.clear();
-    rays.occluded.resize(n, false);
     rays.occluded
         .par_chunks_mut(chunk)
         .enumerate()
@@ -54,7 +58,7 @@ pub fn intersect_occluded(world: &World, rays: ShadowTrace<'_>) {
 /// Adds the radiance of every unoccluded shadow ray to its sample; returns how many were lit.
 pub fn add_unoccluded(rays: LitRays<'_>, samples: Samples<'_>) -> usize {
     let occluded = rays.occluded;
-    crate::film::add_sorted(samples.radiance, rays.slot, rays.radiance, |i| !occluded[i]);
+    crate::queue::add_sorted(samples.radiance, rays.slot, rays.radiance, |i| !occluded[i]);
     occluded.iter().filter(|&&o| !o).count()
 }
 
@@ -76,6 +80,7 @@ mod tests {
                 t_max: to.length(),
                 radiance: Vec3::ONE,
                 slot: SampleSlot(q.len() as u32),
+                occluded: false,
             });
         };
         // Under the red sphere toward a light straight above it: blocked.
@@ -85,6 +90,6 @@ mod tests {
         // Open sky.
         push(Vec3::new(10.0, -1.99, 0.0), Vec3::new(10.0, 10.0, 0.0));
         intersect_occluded(&world, ShadowTrace::of(&mut q));
-        assert_eq!(q.occluded, vec![true, false, false]);
+        assert_eq!(q.occluded(), vec![true, false, false]);
     }
 }

@@ -283,7 +283,7 @@ fn every_pass_keeps_its_shadow_rays_in_slot_order() {
         fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
             if run.stage == Stage::Shade {
                 let s: &ShadowQueue = q.shadows;
-                self.0 &= s.slot.windows(2).all(|w| w[0] <= w[1]);
+                self.0 &= s.slot().windows(2).all(|w| w[0] <= w[1]);
             }
         }
     }

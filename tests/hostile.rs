@@ -54,7 +54,7 @@ fn many_lights_sharing_one_sample_slot_do_not_spin_in_add_range() {
     let value: Vec<Vec3> = (0..n).map(|_| Vec3::ONE).collect();
     let out = within(20, "add_sorted", move || {
         let mut out = vec![Vec3::ZERO; 101];
-        wavefront::film::add_sorted(&mut out, &slot, &value, |_| true);
+        wavefront::queue::add_sorted(&mut out, &slot, &value, |_| true);
         out
     });
     assert_eq!(out[0], Vec3::ONE);
@@ -65,7 +65,7 @@ fn many_lights_sharing_one_sample_slot_do_not_spin_in_add_range() {
     let serial = value.iter().fold(Vec3::ZERO, |a, &b| a + b);
     let out = within(20, "add_sorted", move || {
         let mut out = vec![Vec3::ZERO; 1];
-        wavefront::film::add_sorted(&mut out, &slot, &value, |_| true);
+        wavefront::queue::add_sorted(&mut out, &slot, &value, |_| true);
         out
     });
     assert_eq!(out[0], serial);

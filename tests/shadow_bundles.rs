@@ -22,9 +22,9 @@ struct ShadowRays {
 impl Observer for ShadowRays {
     fn after(&mut self, run: &StageRun, q: &Queues<'_>) {
         if run.stage == Stage::Shadow {
-            self.origin.extend_from_slice(&q.shadows.origin);
-            self.direction.extend_from_slice(&q.shadows.direction);
-            self.t_max.extend_from_slice(&q.shadows.t_max);
+            self.origin.extend_from_slice(q.shadows.origin());
+            self.direction.extend_from_slice(q.shadows.direction());
+            self.t_max.extend_from_slice(q.shadows.t_max());
         }
     }
 }

@@ -399,26 +399,34 @@ fn poisoned_rays_leave_the_pipeline_without_disturbing_others() {
         slot += 1;
     }
     let (mut a, mut b) = (HitColumns::default(), HitColumns::default());
-    intersect_closest(&world, ClosestRays::of(&clean), ClosestOut::of(&mut a));
-    intersect_closest(&world, ClosestRays::of(&mixed), ClosestOut::of(&mut b));
+    intersect_closest(
+        &world,
+        ClosestRays::of(&clean),
+        ClosestOut::resizing(&mut a),
+    );
+    intersect_closest(
+        &world,
+        ClosestRays::of(&mixed),
+        ClosestOut::resizing(&mut b),
+    );
     for k in 0..good.len() {
         assert_eq!(
-            b.prim[2 * k + 1],
+            b.prim()[2 * k + 1],
             PrimId::NONE,
             "poisoned ray {k} hit something"
         );
         assert_eq!(
-            (a.t[k].to_bits(), a.prim[k]),
-            (b.t[2 * k].to_bits(), b.prim[2 * k]),
+            (a.t()[k].to_bits(), a.prim()[k]),
+            (b.t()[2 * k].to_bits(), b.prim()[2 * k]),
             "good ray {k} changed"
         );
         assert!(!world.intersect_occluded(
-            mixed.origin[2 * k + 1],
-            mixed.direction[2 * k + 1],
+            mixed.origin()[2 * k + 1],
+            mixed.direction()[2 * k + 1],
             f32::INFINITY
         ));
     }
-    assert!(a.prim.iter().filter(|p| p.is_hit()).count() > 32);
+    assert!(a.prim().iter().filter(|p| p.is_hit()).count() > 32);
 }
 
 #[test]

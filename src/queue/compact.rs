@@ -1,38 +1,18 @@
-//! Order-preserving parallel compaction and gathers.
+//! Order-preserving parallel compaction: the one helper of every kernel with variable output
+//! (`compact_hits`, `spawn_reflection_rays`, `spawn_shadow_rays`).
 //!
-//! Kernels with variable output write a per-row outcome in parallel; [`kept_rows`] then lists the
-//! rows to keep in their original order (rayon's indexed `collect` preserves order whatever the
-//! thread count), and [`gather`] copies a column's kept rows in parallel. Atomic appends would
-//! reorder rows between runs; this does not.
+//! A two-pass compaction over chunks of input rows: first each chunk's kept rows are counted in
+//! parallel ([`count_chunks`], or a kernel's own first pass), then [`compact`] sizes the output
+//! queue to the total and hands each chunk its consecutive piece of every output column, so every
+//! chunk writes its kept rows directly, in order, with no index list and no atomics. Rows keep
+//! their input order whatever the thread count (atomic appends would reorder them between runs).
 
 use rayon::prelude::*;
 
-use super::{MIN_CHUNK, RowIndex};
-
-/// Indices of the rows for which `keep` is true, ascending, into `out` (cleared first).
-pub fn kept_rows(n: usize, keep: impl Fn(usize) -> bool + Sync, out: &mut Vec<RowIndex>) {
-    out.clear();
-    out.par_extend(
-        (0..n as u32)
-            .into_par_iter()
-            .with_min_len(MIN_CHUNK)
-            .filter(|&i| keep(i as usize))
-            .map(RowIndex),
-    );
-}
-
-/// `out[k] = column[rows[k]]` for every k, in parallel (`out` is overwritten).
-pub fn gather<T: Copy + Send + Sync>(column: &[T], rows: &[RowIndex], out: &mut Vec<T>) {
-    rows.par_iter()
-        .with_min_len(MIN_CHUNK)
-        .map(|&i| column[i.get()])
-        .collect_into_vec(out);
-}
+use super::{ColumnSet, Resize};
 
 /// Counts, in parallel, the rows each chunk of `chunk` rows (of `n`) keeps, into `counts` (one
-/// entry per chunk, overwritten); returns the total. The first pass of an order-preserving
-/// two-pass compaction: [`split_by_counts`] then hands each chunk its place in the output, so
-/// every chunk writes its kept rows directly, in order, with no index list and no atomics.
+/// entry per chunk, overwritten); returns the total. The first pass of [`compact`].
 pub fn count_chunks(
     n: usize,
     chunk: usize,
@@ -47,44 +27,89 @@ pub fn count_chunks(
     counts.iter().sum()
 }
 
-/// `out` (resized to the sum of `counts`) cut into consecutive pieces of `counts[c]` rows: chunk
-/// `c`'s part of a compacted column.
-pub fn split_by_counts<'a, T: Copy + Default>(
-    out: &'a mut Vec<T>,
-    counts: &[usize],
-) -> Vec<&'a mut [T]> {
-    // Every row is overwritten by its chunk: only a growing column needs filling.
-    out.resize(counts.iter().sum(), T::default());
-    let mut rest = out.as_mut_slice();
+/// The second pass: sizes `out`'s queue to the sum of `counts` and runs `write(c, piece)` in
+/// parallel for every chunk `c`, where `piece` is rows `counts[..c].sum()..` (`counts[c]` of
+/// them) of every column of the set: chunk `c`'s part of the compacted queue, which `write`
+/// fills completely.
+pub fn compact<S>(out: Resize<S>, counts: &[usize], write: impl Fn(usize, S) + Sync)
+where
+    S: ColumnSet + Send,
+{
+    let mut rest = out.resize(counts.iter().sum());
     let mut pieces = Vec::with_capacity(counts.len());
     for &k in counts {
-        let (piece, tail) = rest.split_at_mut(k);
+        let (piece, tail) = rest.split_at(k);
         pieces.push(piece);
         rest = tail;
     }
     pieces
+        .into_par_iter()
+        .enumerate()
+        .for_each(|(c, piece)| write(c, piece));
 }
 
+// The test queues use only part of what the macros generate.
 #[cfg(test)]
+#[allow(dead_code)]
 mod tests {
     use super::*;
+    use crate::queue::Queue;
+
+    crate::queue! {
+        /// A test queue.
+        pub struct Kept {
+            /// Input row index.
+            row: u32,
+            /// Twice it.
+            twice: u64,
+        }
+        /// A row.
+        pub struct KeptRow;
+    }
+
+    crate::column_set! {
+        /// Both columns, written.
+        pub struct KeptOut<'a>: Kept { write row: u32, write twice: u64 }
+    }
+
+    /// The kept rows of `n` by two-pass compaction in chunks of 1,000.
+    fn compacted(n: usize, keep: impl Fn(usize) -> bool + Sync, out: &mut Kept) {
+        let mut counts = vec![];
+        count_chunks(n, 1000, |r| r.filter(|&i| keep(i)).count(), &mut counts);
+        compact(KeptOut::resizing(out), &counts, |c, piece| {
+            let mut j = 0;
+            for i in c * 1000..(c * 1000 + 1000).min(n) {
+                if keep(i) {
+                    (piece.row[j], piece.twice[j]) = (i as u32, 2 * i as u64);
+                    j += 1;
+                }
+            }
+            assert_eq!(j, piece.row.len(), "each chunk fills its piece");
+        });
+    }
 
     #[test]
-    fn kept_rows_preserve_order_on_any_pool() {
+    fn compaction_preserves_order_on_any_pool() {
         let n = 100_000;
         let keep = |i: usize| (i * 7919) % 13 < 5;
-        let expected: Vec<RowIndex> = (0..n as u32)
-            .filter(|&i| keep(i as usize))
-            .map(RowIndex)
-            .collect();
+        let expected: Vec<u32> = (0..n as u32).filter(|&i| keep(i as usize)).collect();
         for threads in [1, 2, 4] {
             let pool = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            let mut out = vec![];
-            pool.install(|| kept_rows(n, keep, &mut out));
-            assert_eq!(out, expected, "{threads} threads");
+            // A queue longer than the output first: compaction sizes it down, one length.
+            let mut out = Kept::default();
+            out.resize(n + 7);
+            pool.install(|| compacted(n, keep, &mut out));
+            assert_eq!(out.row(), expected, "{threads} threads");
+            assert_eq!(out.column_lens(), vec![expected.len(); 2]);
+            assert!(
+                out.twice()
+                    .iter()
+                    .zip(out.row())
+                    .all(|(&t, &r)| t == 2 * r as u64)
+            );
         }
     }
 
@@ -93,19 +118,12 @@ mod tests {
         let mut counts = vec![];
         let total = count_chunks(10, 4, |r| r.filter(|i| i % 3 == 0).count(), &mut counts);
         assert_eq!((total, counts.as_slice()), (4, &[2, 1, 1][..]));
-        let mut out = vec![7u32; 1];
-        let pieces = split_by_counts(&mut out, &counts);
-        assert_eq!(pieces.iter().map(|p| p.len()).collect::<Vec<_>>(), counts);
+        let mut out = Kept::default();
+        let mut lens = std::sync::Mutex::new(vec![0; 3]);
+        compact(KeptOut::resizing(&mut out), &counts, |c, piece| {
+            lens.lock().unwrap()[c] = piece.row.len();
+        });
+        assert_eq!(*lens.get_mut().unwrap(), counts);
         assert_eq!(out.len(), 4);
-    }
-
-    #[test]
-    fn gather_copies_kept_rows() {
-        let col: Vec<u32> = (0..10).map(|i| i * 10).collect();
-        let mut out = vec![99; 3];
-        gather(&col, &[RowIndex(1), RowIndex(4), RowIndex(9)], &mut out);
-        assert_eq!(out, vec![10, 40, 90]);
-        gather(&col, &[], &mut out);
-        assert!(out.is_empty());
     }
 }

@@ -1,4 +1,6 @@
-//! Ray queues: structure-of-arrays columns, one file per schema.
+//! Ray queues: structure-of-arrays columns, one file per schema, each declared once with
+//! [`queue!`](crate::queue!) (private columns of one length, the row API, `ROW_BYTES`, the
+//! column descriptors).
 //!
 //! | queue | rows are | columns |
 //! |---|---|---|
@@ -6,25 +8,32 @@
 //! | [`HitColumns`] | one closest-hit answer per ray of a `RayQueue` | `t`, `prim` |
 //! | [`HitQueue`] | rays that hit something | `origin`, `direction`, `weight`, `slot`, `t`, `prim` (compacted by intersect); `point`, `normal`, `material`, `spawn`, `emitted` (written by shade) |
 //! | [`ShadowQueue`] | shadow rays toward the lights | `origin`, `direction`, `t_max`, `radiance`, `slot` (written by shade); `occluded` (written by shadow) |
+//! | [`SampleBuffer`] | the samples of the current wave | `radiance` |
 //!
 //! Which stage reads and writes which column is declared once, by the kernels' column sets
 //! ([`columns`]), and collected by the stage registry ([`crate::schedule::stage`]).
 //!
 //! Every queue keeps its rows in ascending [`SampleSlot`] order: generation emits slots in order and
-//! [`compact`] preserves order, which is what makes the film's accumulation deterministic.
+//! [`compact`] (the one compaction helper of every kernel that compacts) preserves order, which is what makes the film's accumulation deterministic.
 
+pub mod closest;
 pub mod columns;
 pub mod compact;
 pub mod hit;
 pub mod lanes;
 pub mod ray;
 pub mod region;
+pub mod samples;
+pub mod schema;
 pub mod shadow;
 pub mod wave;
 
-pub use columns::{Access, Column, ColumnAccess};
-pub use hit::{HitColumns, HitQueue, PrimId};
+pub use closest::{ClosestHit, HitColumns};
+pub use columns::{Access, Column, ColumnAccess, ColumnSet, KernelDecl, Resize};
+pub use hit::{HitItem, HitQueue, PrimId};
 pub use ray::{RayItem, RayQueue};
+pub use samples::{Sample, SampleBuffer, Samples, add_sorted};
+pub use schema::Queue;
 pub use shadow::{ShadowItem, ShadowQueue};
 
 use bytemuck::{Pod, Zeroable};

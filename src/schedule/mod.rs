@@ -30,10 +30,12 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-use crate::film::{Film, PixelSink, SampleBuffer, resolve_wave};
+use crate::film::{Film, PixelSink, resolve_wave};
 use crate::queue::region::Region;
 use crate::queue::wave::Wave;
-use crate::queue::{HitColumns, HitQueue, PixelIndex, RayQueue, ShadowQueue};
+use crate::queue::{
+    HitColumns, HitQueue, PixelIndex, RayQueue, SampleBuffer, Samples, ShadowQueue,
+};
 use crate::scene::{RenderMode, Scene};
 use crate::stages::generate::{CameraRays, generate_camera_rays};
 use crate::stages::intersect::{
@@ -41,8 +43,8 @@ use crate::stages::intersect::{
 };
 use crate::stages::reflect::{NextRays, ReflectHits, spawn_reflection_rays};
 use crate::stages::shade::{
-    EmittedHits, MAX_SHADOW_ROWS, MaskHits, Samples, ShadeHits, ShadeScratch, ShadeSettings,
-    ShadedHits, ShadowPass, ShadowRays, add_emitted, shade_hit_mask, shade_hits, spawn_shadow_rays,
+    EmittedHits, MAX_SHADOW_ROWS, MaskHits, ShadeHits, ShadeScratch, ShadeSettings, ShadedHits,
+    ShadowPass, ShadowRays, add_emitted, shade_hit_mask, shade_hits, spawn_shadow_rays,
 };
 use crate::stages::shadow::{LitRays, ShadowTrace, add_unoccluded, intersect_occluded};
 use crate::world::World;
@@ -584,7 +586,7 @@ pub fn run_stage(
                 &scene.camera,
                 &scene.image,
                 wave,
-                CameraRays::of(&mut ws.rays),
+                CameraRays::resizing(&mut ws.rays),
             );
             (0, ws.rays.len())
         }
@@ -592,13 +594,13 @@ pub fn run_stage(
             intersect_closest(
                 world,
                 ClosestRays::of(&ws.rays),
-                ClosestOut::of(&mut ws.closest),
+                ClosestOut::resizing(&mut ws.closest),
             );
             compact_hits(
                 CompactRays::of(&ws.rays),
                 CompactHits::of(&ws.closest),
                 &mut ws.counts,
-                CompactOut::of(&mut ws.hits),
+                CompactOut::resizing(&mut ws.hits),
             );
             (ws.rays.len(), ws.hits.len())
         }
@@ -621,7 +623,7 @@ pub fn run_stage(
                     pass,
                     ShadedHits::of(&ws.hits),
                     &mut ws.shade,
-                    ShadowRays::of(&mut ws.shadows),
+                    ShadowRays::resizing(&mut ws.shadows),
                 );
                 (rays_in, ws.shadows.len())
             } else {
@@ -639,7 +641,7 @@ pub fn run_stage(
                 world,
                 ReflectHits::of(&ws.hits),
                 &mut ws.counts,
-                NextRays::of(&mut ws.next),
+                NextRays::resizing(&mut ws.next),
             );
             (ws.hits.len(), ws.next.len())
         }

@@ -5,9 +5,8 @@
 use std::time::Duration;
 
 use super::stage::Stage;
-use crate::film::SampleBuffer;
 use crate::queue::wave::Wave;
-use crate::queue::{HitColumns, HitQueue, RayQueue, ShadowQueue};
+use crate::queue::{HitColumns, HitQueue, RayQueue, SampleBuffer, ShadowQueue};
 
 /// The queues of the current wave, as a stage finds them (`before`) or leaves them (`after`).
 #[derive(Clone, Copy, Debug)]

@@ -455,7 +455,7 @@ fn shadow_variants(
     use rayon::prelude::*;
     use wavefront::accel::kdtree::{BundleCounts, KdAccel};
     let accel = KdAccel::new(tris.tree().clone(), tris.mesh());
-    let n = q.origin.len();
+    let n = q.origin().len();
     let chunk = KdAccel::OCCLUDED_BATCH;
     let mut out = vec![false; n];
     let best = |f: &mut dyn FnMut()| {
@@ -471,9 +471,9 @@ fn shadow_variants(
         out.par_chunks_mut(chunk).enumerate().for_each(|(c, out)| {
             let r = c * chunk..c * chunk + out.len();
             accel.intersect_occluded_batch(
-                &q.origin[r.clone()],
-                &q.direction[r.clone()],
-                &q.t_max[r],
+                &q.origin()[r.clone()],
+                &q.direction()[r.clone()],
+                &q.t_max()[r],
                 out,
             );
         })
@@ -484,15 +484,15 @@ fn shadow_variants(
         let r = c * chunk..c * chunk + out.len();
         counts.add(&accel.intersect_occluded_batch_counted(
             level,
-            &q.origin[r.clone()],
-            &q.direction[r.clone()],
-            &q.t_max[r],
+            &q.origin()[r.clone()],
+            &q.direction()[r.clone()],
+            &q.t_max()[r],
             out,
         ));
     }
     let single = best(&mut || {
         out.par_iter_mut().enumerate().for_each(|(i, o)| {
-            *o = accel.intersect_occluded(q.origin[i], q.direction[i], q.t_max[i]);
+            *o = accel.intersect_occluded(q.origin()[i], q.direction()[i], q.t_max()[i]);
         })
     });
     vec![
@@ -973,16 +973,16 @@ mod tests {
         }
         let d1 = bench.snapshot.depth(1).unwrap().clone();
         bench.run(Stage::Intersect, 1);
-        assert_eq!(bench.queues().closest.prim, d1.closest.prim);
-        assert_eq!(bench.queues().hits.slot, d1.hits.slot);
+        assert_eq!(bench.queues().closest.prim(), d1.closest.prim());
+        assert_eq!(bench.queues().hits.slot(), d1.hits.slot());
         bench.run(Stage::Shadow, 1);
         let shadows = d1.shadows.as_ref().unwrap();
-        assert_eq!(bench.queues().shadows.occluded, shadows.occluded);
+        assert_eq!(bench.queues().shadows.occluded(), shadows.occluded());
         bench.run(Stage::Reflect, 0);
-        assert_eq!(bench.queues().next.direction, d1.rays.direction);
+        assert_eq!(bench.queues().next.direction(), d1.rays.direction());
         bench.run(Stage::Shade, 1);
-        assert_eq!(bench.queues().hits.normal, d1.hits.normal);
-        assert_eq!(bench.queues().shadows.radiance, shadows.radiance);
+        assert_eq!(bench.queues().hits.normal(), d1.hits.normal());
+        assert_eq!(bench.queues().shadows.radiance(), shadows.radiance());
     }
 
     #[test]
