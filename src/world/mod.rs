@@ -15,11 +15,11 @@ use crate::scene::{Material, OffsetMethod, Robustness, Scene, SphereTest, TreeSo
 use crate::world::frame::{Light, Plane, RenderFrame, Sphere};
 
 mod analytic;
-mod cached;
 pub mod frame;
+mod load;
 mod sphere_bvh;
 pub use analytic::SurfaceOut;
-pub use cached::{CacheStatus, Setup, cache_key, centred_entry, read_mesh_file};
+pub use load::{CacheStatus, Setup, cache_key, centred_entry, read_mesh_file};
 pub use sphere_bvh::{SPHERE_BVH_MIN, SphereBvh};
 
 /// Anything that can go wrong turning a [`Scene`] into a traceable world.

@@ -1,11 +1,13 @@
-//! Loading a world's triangles through the tree cache ([`crate::accel::cache`]): the mesh files (OBJ,
-//! PLY, glTF: [`crate::mesh::read_bytes`]) are read and hashed once, with their format and any
-//! external glTF buffers ([`crate::mesh::cache_sources`]); on a hit the merged mesh and tree come from the cache entry, on a miss they
-//! are parsed ([`crate::mesh::obj_fast`]) and built, and the entry is written for the next run.
+//! The one load path from a scene to its triangles ([`World::load_cached`]): every mesh file
+//! (OBJ, PLY, glTF: [`crate::mesh::read_bytes`]) is checked and read as bytes, which with its
+//! format tag and external glTF buffers ([`crate::mesh::cache_sources`]) make the tree cache's
+//! key ([`crate::accel::cache`]); on a hit the merged mesh and tree come from the entry, on a miss
+//! the files are parsed, merged and built — or a tree file is checked and read — and the entry is
+//! written for the next run. MTL materials and vertex normals are read in the same parse.
 //!
-//! Either way the tree is built in the frame centred on the merged mesh (as `kdtree build` and
-//! tree files do) and moved to the camera's frame with [`KdTree::reframed`], so a render with a
-//! cold cache, a warm cache or no cache traces the same tree.
+//! A built tree is built in the frame centred on the merged mesh (as `kdtree build` builds it,
+//! through [`centred_entry`]) and moved to the camera's frame with [`KdTree::into_reframed`], so
+//! a render with a cold cache, a warm cache or no cache traces the same tree.
 
 use std::time::Instant;
 
@@ -126,13 +128,13 @@ impl World {
             .iter()
             .any(|m| m.mtl.is_some() || m.normals == Normals::Vertex);
         let parse_start = Instant::now();
-        let parsed = match (&cached, rich) {
+        let mut parsed = match (&cached, rich) {
             (Some(_), false) => None,
             _ => Some(parse(scene, &files)?),
         };
         drop(files);
         let parse_seconds = parse_start.elapsed().as_secs_f64();
-        let entry = match (cached, &parsed) {
+        let entry = match (cached, &mut parsed) {
             (Some(e), _) => e,
             (None, Some(parsed)) => {
                 let entry = match (&source, method) {
@@ -196,7 +198,7 @@ pub fn cache_key(method: BuildMethod, files: &[Vec<u8>], extra: &[Vec<Vec<u8>>])
 
 /// The scene's meshes parsed and merged (meshes one after another, in scene order).
 struct Parsed {
-    /// Every mesh's positions (world coordinates) and faces.
+    /// Every mesh's positions (world coordinates) and faces (taken by a build, [`build_entry`]).
     merged: ObjMesh,
     /// Triangles of each mesh.
     counts: Vec<u64>,
@@ -291,9 +293,11 @@ fn tree_file_entry(
     })
 }
 
-/// Builds the tree over the parsed, merged mesh in the frame centred on it.
-fn build_entry(parsed: &Parsed, method: BuildMethod) -> Result<CachedTree, MeshError> {
-    let (entry, _, _) = centred_entry(parsed.merged.clone(), parsed.counts.clone(), method)?;
+/// Builds the tree over the parsed, merged mesh (taken from `parsed`, which keeps its materials
+/// and normals) in the frame centred on it.
+fn build_entry(parsed: &mut Parsed, method: BuildMethod) -> Result<CachedTree, MeshError> {
+    let merged = std::mem::take(&mut parsed.merged);
+    let (entry, _, _) = centred_entry(merged, parsed.counts.clone(), method)?;
     Ok(entry)
 }
 
