@@ -389,7 +389,7 @@ fn unbounded_shadow_rays_take_the_same_answers_in_batches_as_one_by_one() {
         ),
     ];
     let tris = world.triangles().expect("a mesh");
-    let accel = KdAccel::new(tris.tree().clone(), tris.mesh());
+    let accel = tris.accel();
     for (what, dirs, t_max) in cases {
         let mut batch = vec![false; n];
         world.intersect_occluded_batch(&origins, &dirs, &t_max, &mut batch);

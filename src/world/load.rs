@@ -350,14 +350,10 @@ fn triangles_in(
             (ranges, vec![])
         }
     };
-    // A tree file is read in the camera's frame already; a built tree moves there.
-    let tree = if entry.origin == frame.origin {
-        entry.tree
-    } else {
-        entry
-            .tree
-            .into_reframed(&RenderFrame::at(entry.origin), frame)
-    };
+    // A built tree moves to the camera's frame; a tree file was read there already.
+    let tree = entry
+        .tree
+        .into_reframed(&RenderFrame::at(entry.origin), frame);
     let tree = KdAccel::new(tree, &mesh);
     Ok(Triangles {
         mesh,

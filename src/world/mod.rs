@@ -103,6 +103,11 @@ impl Triangles {
         self.tree.tree()
     }
 
+    /// The tree prepared for traversal (what the world's queries walk).
+    pub fn accel(&self) -> &KdAccel {
+        &self.tree
+    }
+
     /// The interpolated unit vertex normal of triangle `k` at barycentric coordinates `b`, or
     /// `None` where its mesh shades with geometric normals.
     #[inline]

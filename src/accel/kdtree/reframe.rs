@@ -15,8 +15,12 @@ impl KdTree {
     }
 
     /// [`KdTree::reframed`] in place (no copy of the node or triangle arrays; the nodes are moved
-    /// in parallel).
+    /// in parallel). Into its own frame a tree stays as it is (through world coordinates and back
+    /// a coordinate could round).
     pub fn into_reframed(mut self, from: &RenderFrame, to: &RenderFrame) -> KdTree {
+        if from == to {
+            return self;
+        }
         let move_to = |axis: usize, x: f32| to.coordinate(axis, from.world_coordinate(axis, x));
         self.nodes
             .par_iter_mut()

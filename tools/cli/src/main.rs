@@ -654,7 +654,8 @@ fn build_tree(
 ) -> Result<()> {
     wavefront::world::check_mesh_file(mesh, None)?;
     let start = Instant::now();
-    let (bytes, sources) = wavefront::world::read_mesh_file(mesh, true)?;
+    let store = cache.cache();
+    let (bytes, sources) = wavefront::world::read_mesh_file(mesh, store.is_some())?;
     let obj = wavefront::mesh::obj_fast::read_bytes(mesh, &bytes)?;
     let load = start.elapsed().as_secs_f64();
     // The entry a render's cache miss builds: the tree in the frame centred on the mesh.
@@ -673,7 +674,7 @@ fn build_tree(
     partial.commit().with_context(cannot_write)?;
     let stats = entry.tree.stats(&m);
     let mut stored = None;
-    if let Some(c) = cache.cache() {
+    if let Some(c) = store {
         let key = wavefront::world::cache_key(method, &[bytes], &[sources]);
         match c.store(key, &entry) {
             Ok(path) => stored = Some(path),

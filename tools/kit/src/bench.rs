@@ -454,7 +454,7 @@ fn shadow_variants(
 ) -> Vec<VariantWork> {
     use rayon::prelude::*;
     use wavefront::accel::kdtree::{BundleCounts, KdAccel};
-    let accel = KdAccel::new(tris.tree().clone(), tris.mesh());
+    let accel = tris.accel();
     let n = q.origin().len();
     let chunk = KdAccel::OCCLUDED_BATCH;
     let mut out = vec![false; n];
