@@ -3,8 +3,8 @@
 //! Reads file metadata and bytes; writes nothing. A FIFO would block `open` until a writer comes
 //! (forever), a device may never end, a directory is not a file: each is refused before it is
 //! opened, with an I/O error naming what it is, and checked again on the opened handle. Scene,
-//! MTL and tree files are small text files, so a file past its cap ([`SCENE_CAP`], [`MTL_CAP`],
-//! [`TREE_CAP`]) is refused before anything is allocated (a 2 GB sparse file would otherwise ask
+//! MTL and tree files are small text files, so a file past its cap (`SCENE_CAP`, `MTL_CAP`,
+//! `TREE_CAP`) is refused before anything is allocated (a 2 GB sparse file would otherwise ask
 //! the TOML lexer for 15 GB).
 
 use std::fs::{File, Metadata};
@@ -12,11 +12,11 @@ use std::io::{self, Read};
 use std::path::Path;
 
 /// Largest scene file read: 16 MiB.
-pub const SCENE_CAP: u64 = 16 << 20;
+pub(crate) const SCENE_CAP: u64 = 16 << 20;
 /// Largest MTL library read: 16 MiB.
-pub const MTL_CAP: u64 = 16 << 20;
+pub(crate) const MTL_CAP: u64 = 16 << 20;
 /// Largest tree file read: 4 GiB (the text tree of a mesh of tens of millions of triangles).
-pub const TREE_CAP: u64 = 4 << 30;
+pub(crate) const TREE_CAP: u64 = 4 << 30;
 
 /// What `meta` is when it is not a regular file (`"a FIFO"`, `"a directory"`, …).
 fn not_regular(meta: &Metadata) -> Option<&'static str> {
@@ -65,7 +65,7 @@ pub fn size(len: u64) -> String {
 }
 
 /// Opens `path` for reading if it is a regular file (following symlinks), with its length.
-pub fn open_regular(path: &Path) -> io::Result<(File, u64)> {
+pub(crate) fn open_regular(path: &Path) -> io::Result<(File, u64)> {
     check_regular(&std::fs::metadata(path)?)?;
     let file = File::open(path)?;
     let meta = file.metadata()?;
@@ -74,13 +74,13 @@ pub fn open_regular(path: &Path) -> io::Result<(File, u64)> {
 }
 
 /// True when `path` is not there at all (a broken symlink counts as there: opening it says why).
-pub fn is_absent(path: &Path) -> bool {
+pub(crate) fn is_absent(path: &Path) -> bool {
     matches!(std::fs::symlink_metadata(path), Err(e) if e.kind() == io::ErrorKind::NotFound)
 }
 
 /// The whole regular file at `path`, refused past `cap` bytes (`what` names the kind of file in
 /// the error: `scene files are capped at 16 MiB`).
-pub fn read_capped(path: &Path, cap: u64, what: &str) -> io::Result<Vec<u8>> {
+pub(crate) fn read_capped(path: &Path, cap: u64, what: &str) -> io::Result<Vec<u8>> {
     let (file, len) = open_regular(path)?;
     let too_big = |len: u64| {
         io::Error::other(format!(
@@ -102,7 +102,7 @@ pub fn read_capped(path: &Path, cap: u64, what: &str) -> io::Result<Vec<u8>> {
 }
 
 /// [`read_capped`] as UTF-8 text.
-pub fn read_text_capped(path: &Path, cap: u64, what: &str) -> io::Result<String> {
+pub(crate) fn read_text_capped(path: &Path, cap: u64, what: &str) -> io::Result<String> {
     String::from_utf8(read_capped(path, cap, what)?)
         .map_err(|_| io::Error::new(io::ErrorKind::InvalidData, "is not UTF-8 text"))
 }

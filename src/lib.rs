@@ -66,8 +66,8 @@ pub fn load_scene(name_or_path: &str) -> Result<Scene, world::LoadError> {
 }
 
 /// [`load_scene`] with command-line settings (`--set`, `--size`, SPEC §16) applied: to a scene
-/// file's own keys ([`scene::set::load_with`]); to a built-in or a bare mesh only
-/// `image.width` and `image.height` ([`scene::set::image_size`]; a bare mesh is framed for it).
+/// file's own keys (`scene::set::load_with`); to a built-in or a bare mesh only
+/// `image.width` and `image.height` (`scene::set::image_size`; a bare mesh is framed for it).
 pub fn load_scene_with(
     name_or_path: &str,
     settings: &[scene::set::Setting],

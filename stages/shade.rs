@@ -149,7 +149,7 @@ impl ShadowPass {
 
 /// `(Ld + Ls)·I·a` from one light at `p` with facing normal `n` and unit view vector `v`, and
 /// `n·l`, where `l` and `a` are the light's direction and attenuation there ([`Light::toward`],
-/// [`Light::attenuation`]: spot factor, falloff). Finite for every finite input: a zero half
+/// `Light::attenuation`: spot factor, falloff). Finite for every finite input: a zero half
 /// vector counts as `n·h = 0`, a point or spot light at `p` itself gives nothing, and so does an
 /// attenuated value that overflows.
 #[inline]

@@ -17,9 +17,9 @@ pub type Aabb = ([f32; 3], [f32; 3]);
 
 /// Deepest node the builder makes (the root is at depth 0); deeper items share one leaf. The
 /// traversal stack holds one entry per level.
-pub const MAX_DEPTH: usize = 48;
+pub(crate) const MAX_DEPTH: usize = 48;
 /// Items per leaf above which the builder always splits (when the centres can be split).
-pub const MAX_LEAF: usize = 4;
+pub(crate) const MAX_LEAF: usize = 4;
 /// SAH cost of one node visit, in units of one item test. On `many-spheres` any value from 0.5
 /// (one sphere per leaf) to 3 traces at the same speed (measured, one thread); 2 makes leaves of
 /// about two spheres and half the nodes of 0.5, which builds faster.
@@ -135,7 +135,7 @@ impl Bvh {
     /// visited, the farther pushed with its entry `t` and skipped when popped beyond the limit
     /// by then.
     #[inline(always)]
-    pub fn visit<const WIDE: bool>(
+    pub(crate) fn visit<const WIDE: bool>(
         &self,
         ray: &SlabRay,
         mut limit: f32,
@@ -382,7 +382,7 @@ const FAR_ABS: f32 = 1e-30;
 /// node holding a hit at `t ≤ best` is never cut by rounding (the slab test's three roundings,
 /// `t`'s own rounding to f32). Infinity and NaN stay.
 #[inline(always)]
-pub fn limit_for(best: f32) -> f32 {
+pub(crate) fn limit_for(best: f32) -> f32 {
     best * (1.0 + 1.0 / (1 << 16) as f32) + FAR_ABS
 }
 
@@ -393,13 +393,11 @@ pub fn limit_for(best: f32) -> f32 {
 /// whenever `limit ≥ T·(1 + 2⁻²⁰)`. NaN slab ends (an origin on a slab of a zero direction
 /// component) are ignored, as are overflows to infinity, which only ever widen the interval.
 #[derive(Clone, Copy, Debug)]
-pub struct SlabRay {
+pub(crate) struct SlabRay {
     /// Origin.
     pub o: [f32; 3],
     /// `1/d` per component (±∞ for zero components).
     pub inv: [f32; 3],
-    /// True where `inv` is negative: that axis's upper child is nearer.
-    pub neg: [bool; 3],
     /// Per-axis widening of the slab interval in units of `t` (`WIDE` queries only): `e·|1/d|`
     /// for a box widening `e`.
     pub widen: [f32; 3],
@@ -425,17 +423,12 @@ impl SlabRay {
                 0.0
             }
         });
-        Some(SlabRay {
-            o,
-            inv,
-            neg: inv.map(|v| v < 0.0),
-            widen,
-        })
+        Some(SlabRay { o, inv, widen })
     }
 
     /// True when the ray may meet the node's box within `0 ..= limit` (see [`SlabRay`]).
-    #[inline(always)]
-    pub fn meets<const WIDE: bool>(&self, n: &BvhNode, limit: f32) -> bool {
+    #[cfg(test)]
+    fn meets<const WIDE: bool>(&self, n: &BvhNode, limit: f32) -> bool {
         self.entry::<WIDE>(n, limit) <= limit
     }
 

@@ -31,7 +31,7 @@ impl RenderFrame {
 
     /// A frame coordinate along `axis` back in world coordinates (f64, exact).
     #[inline]
-    pub fn world_coordinate(&self, axis: usize, x: f32) -> f64 {
+    pub(crate) fn world_coordinate(&self, axis: usize, x: f32) -> f64 {
         f64::from(x) + self.origin[axis]
     }
 }

@@ -48,7 +48,7 @@ impl TriangleMesh {
 
     /// Geometric normal of triangle `k`: the UNNORMALISED cross product `(b - a) × (c - a)`
     /// (its length is twice the area; zero for degenerate triangles).
-    pub fn geometric_normal(&self, k: usize) -> Vec3 {
+    pub(crate) fn geometric_normal(&self, k: usize) -> Vec3 {
         let [a, b, c] = self.triangle(k);
         (b - a).cross(c - a)
     }
@@ -59,7 +59,7 @@ impl TriangleMesh {
     /// scaled by its largest component before normalising, so a huge triangle's normal does not
     /// overflow to NaN.
     #[inline]
-    pub fn unit_normal(&self, k: usize) -> Vec3 {
+    pub(crate) fn unit_normal(&self, k: usize) -> Vec3 {
         let n = self.geometric_normal(k);
         let l2 = n.length_squared();
         if l2.is_normal() && l2.is_finite() {

@@ -15,7 +15,7 @@
 use glam::Vec3;
 
 /// Half the distance between 1 and the next f32: the unit roundoff `u`.
-pub const MACHINE_EPSILON: f32 = f32::EPSILON * 0.5;
+pub(crate) const MACHINE_EPSILON: f32 = f32::EPSILON * 0.5;
 
 /// `γ(n) = n·u / (1 − n·u)`: the relative error bound of `n` successive f32 operations.
 #[inline]
@@ -25,11 +25,11 @@ pub const fn gamma(n: u32) -> f32 {
 }
 
 /// The naive fixed epsilon, for the error report only.
-pub const FIXED_EPSILON: f32 = 1e-4;
+pub(crate) const FIXED_EPSILON: f32 = 1e-4;
 
 /// The next f32 above `v` (`+inf` and NaN unchanged; `-0.0` goes to the smallest subnormal).
 #[inline]
-pub fn next_float_up(v: f32) -> f32 {
+pub(crate) fn next_float_up(v: f32) -> f32 {
     if v.is_infinite() && v > 0.0 || v.is_nan() {
         return v;
     }
@@ -41,7 +41,7 @@ pub fn next_float_up(v: f32) -> f32 {
 /// The next f32 below `v` (`-inf` and NaN unchanged; `+0.0` goes to the smallest negative
 /// subnormal).
 #[inline]
-pub fn next_float_down(v: f32) -> f32 {
+pub(crate) fn next_float_down(v: f32) -> f32 {
     if v.is_infinite() && v < 0.0 || v.is_nan() {
         return v;
     }
@@ -54,7 +54,7 @@ pub fn next_float_down(v: f32) -> f32 {
 /// points to: by `d = |n|·p_error` along `n`, then each moved coordinate one float further away
 /// from `p` (PBR 4th ed., `OffsetRayOrigin`).
 #[inline]
-pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3) -> Vec3 {
+pub(crate) fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3) -> Vec3 {
     let d = n.abs().dot(p_error);
     let offset = d * n;
     let mut po = p + offset;
@@ -71,7 +71,7 @@ pub fn offset_ray_origin(p: Vec3, p_error: Vec3, n: Vec3) -> Vec3 {
 /// `p` moved by the fixed [`FIXED_EPSILON`] along `n`: the naive method, kept for the error
 /// report.
 #[inline]
-pub fn offset_fixed(p: Vec3, n: Vec3) -> Vec3 {
+pub(crate) fn offset_fixed(p: Vec3, n: Vec3) -> Vec3 {
     p + FIXED_EPSILON * n
 }
 
@@ -80,7 +80,7 @@ pub fn offset_fixed(p: Vec3, n: Vec3) -> Vec3 {
 /// unit direction `dir`, shortened by the light's error bound projected on the ray and by the
 /// distance's own rounding (`γ(3)`), so a surface through the light never counts as a blocker.
 #[inline]
-pub fn shadow_t_max(light: Vec3, dir: Vec3, distance: f32) -> f32 {
+pub(crate) fn shadow_t_max(light: Vec3, dir: Vec3, distance: f32) -> f32 {
     let light_error = gamma(1) * light.abs();
     (distance * (1.0 - gamma(3)) - dir.abs().dot(light_error)).max(0.0)
 }

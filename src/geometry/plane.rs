@@ -18,7 +18,7 @@ pub fn intersect(o: Vec3, d: Vec3, point: Vec3, normal: Vec3, t_max: f32) -> Opt
 /// error bound: `s = (p − q)·n` is within `γ(4)·Σ|(p − q)ᵢ nᵢ|`, and `p − s·n` rounds twice more
 /// per component (PBR 4th ed. §6.8 style bounds).
 #[inline]
-pub fn reproject(p: Vec3, point: Vec3, normal: Vec3) -> (Vec3, Vec3) {
+pub(crate) fn reproject(p: Vec3, point: Vec3, normal: Vec3) -> (Vec3, Vec3) {
     let a = p - point;
     let s = a.dot(normal);
     let projected = p - s * normal;

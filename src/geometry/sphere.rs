@@ -50,7 +50,7 @@ pub fn intersect_naive(o: Vec3, d: Vec3, center: Vec3, radius: f32, t_max: f32) 
 /// The nearer of two roots `t0`, `t1` (in either order) with `0 < t < t_max`, or `None`: how every
 /// ray/sphere test in the project picks its answer.
 #[inline]
-pub fn nearest_root(t0: f32, t1: f32, t_max: f32) -> Option<f32> {
+pub(crate) fn nearest_root(t0: f32, t1: f32, t_max: f32) -> Option<f32> {
     let (near, far) = if t0 <= t1 { (t0, t1) } else { (t1, t0) };
     if near > 0.0 && near < t_max {
         Some(near)
@@ -66,7 +66,7 @@ pub fn nearest_root(t0: f32, t1: f32, t_max: f32) -> Option<f32> {
 /// centre-relative vector `v = r·(p − c)/|p − c|` is within `γ(5)·|v|` per component, and adding
 /// the centre rounds once more (`γ(2)·|c + v|`, with margin).
 #[inline]
-pub fn reproject(p: Vec3, center: Vec3, radius: f32) -> (Vec3, Vec3, Vec3) {
+pub(crate) fn reproject(p: Vec3, center: Vec3, radius: f32) -> (Vec3, Vec3, Vec3) {
     let n = (p - center).normalize();
     let v = radius * n;
     let point = center + v;
@@ -75,7 +75,13 @@ pub fn reproject(p: Vec3, center: Vec3, radius: f32) -> (Vec3, Vec3, Vec3) {
 }
 
 /// The stable formulation in f64: nearest root with `0 < t < t_max`.
-pub fn intersect_f64(o: DVec3, d: DVec3, center: DVec3, radius: f64, t_max: f64) -> Option<f64> {
+pub(crate) fn intersect_f64(
+    o: DVec3,
+    d: DVec3,
+    center: DVec3,
+    radius: f64,
+    t_max: f64,
+) -> Option<f64> {
     let f = o - center;
     let a = d.length_squared();
     let b = f.dot(d);

@@ -26,7 +26,7 @@ pub(crate) fn fail(path: &Path, message: impl Into<String>) -> MeshError {
 }
 
 /// A parsed glTF file and its buffers' bytes (buffer `i` is `buffers[i]`).
-pub struct GltfFile {
+pub(crate) struct GltfFile {
     /// The document.
     pub doc: ::gltf::Document,
     /// Every buffer's bytes, in order.
@@ -159,7 +159,7 @@ fn read_external(file: &Path, index: usize, path: &Path) -> Result<Vec<u8>, Mesh
 
 /// The bytes of every external buffer file of the glTF file `path` whose bytes are `bytes`, in
 /// buffer order (for the tree cache's key: [`super::cache_sources`]).
-pub fn external_buffers(bytes: &[u8], path: &Path) -> Result<Vec<Vec<u8>>, MeshError> {
+pub(crate) fn external_buffers(bytes: &[u8], path: &Path) -> Result<Vec<Vec<u8>>, MeshError> {
     let gltf = document(bytes, path)?;
     let mut out = vec![];
     for b in gltf.buffers() {

@@ -1,8 +1,8 @@
 //! Triangle meshes: flat vertex and index arrays loaded from Wavefront OBJ, PLY (`ply`) and
-//! glTF (`gltf`) files, told apart by extension in one place ([`check_format`],
+//! glTF (`gltf`) files, told apart by extension in one place (`check_format`,
 //! [`read_bytes`]).
 //!
-//! Reads OBJ text (checked line by line by [`check_lines`], then parsed by `tobj`), writes a
+//! Reads OBJ text (checked line by line by `check_lines`, then parsed by `tobj`), writes a
 //! [`TriangleMesh`] whose triangle `k` is the `k`-th face of the file (for PLY and glTF: the
 //! `k`-th triangle in file order). Bad input is rejected here,
 //! at load time, with errors naming file and line, so the kernels that read the mesh later never
@@ -97,7 +97,7 @@ pub enum MeshError {
 
 /// A mesh file format (SPEC §15), told by the file's extension ([`check_format`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Format {
+pub(crate) enum Format {
     /// Wavefront OBJ (`.obj`), with its MTL libraries.
     Obj,
     /// PLY (`.ply`): ASCII or binary (`ply`).
@@ -122,7 +122,7 @@ impl Format {
 /// The format of the mesh file `path` by its extension (any case): `.obj`, `.ply`, `.gltf` or
 /// `.glb`; any other extension, or none, is an error naming the file. Every mesh read goes
 /// through here ([`read_bytes`] dispatches on it).
-pub fn check_format(path: &Path) -> Result<Format, MeshError> {
+pub(crate) fn check_format(path: &Path) -> Result<Format, MeshError> {
     let ext = path
         .extension()
         .and_then(|e| e.to_str())
@@ -144,7 +144,7 @@ pub fn check_format(path: &Path) -> Result<Format, MeshError> {
 }
 
 /// Reads the mesh file `path` whose bytes are `bytes`, in the format its extension names
-/// ([`check_format`]): the one place where formats are told apart. OBJ goes through the fast
+/// (`check_format`): the one place where formats are told apart. OBJ goes through the fast
 /// parser ([`crate::mesh::obj_fast`]) when `fast` and `what` asks for nothing but positions and faces,
 /// else through tobj ([`ObjMesh::parse_with`]); PLY through `ply::parse`; glTF through
 /// `gltf::parse` (which reads external buffers relative to `path`).
@@ -182,7 +182,7 @@ pub fn read_bytes(
 /// bytes themselves for OBJ; for the other formats a tag naming the format first (the same bytes
 /// read as another format are another mesh), then the bytes, then, for glTF, every external
 /// buffer's bytes (a `.gltf` file does not change when its `.bin` does).
-pub fn cache_sources(path: &Path, bytes: &[u8]) -> Result<Vec<Vec<u8>>, MeshError> {
+pub(crate) fn cache_sources(path: &Path, bytes: &[u8]) -> Result<Vec<Vec<u8>>, MeshError> {
     let format = check_format(path)?;
     if format == Format::Obj {
         return Ok(vec![]);
@@ -207,7 +207,7 @@ pub const MAX_FRAME_COORDINATE: f64 = 1e12;
 /// [`MAX_FRAME_COORDINATE`] from `origin` along an axis is an error naming the file: the f32
 /// triangle test would overflow on it and lose its triangles. The one conversion every load
 /// path (direct, tree cache, tree file) makes.
-pub fn frame_vertices(
+pub(crate) fn frame_vertices(
     path: &Path,
     positions: &[[f64; 3]],
     origin: DVec3,
@@ -432,7 +432,7 @@ impl ObjMesh {
     }
 
     /// The vertices' shading normals as f32 (empty when not read).
-    pub fn normals_f32(&self) -> Vec<[f32; 3]> {
+    pub(crate) fn normals_f32(&self) -> Vec<[f32; 3]> {
         self.normals.iter().map(|n| n.map(|c| c as f32)).collect()
     }
 
@@ -500,7 +500,7 @@ fn mtl_error(text: &str, path: &Path, message: &str) -> MeshError {
 
 /// `text` with every line end as LF: a CR not followed by LF (classic Mac line ends) becomes LF,
 /// so a CR-only file is read line by line instead of as one line.
-pub fn unix_line_ends(text: &str) -> Cow<'_, str> {
+pub(crate) fn unix_line_ends(text: &str) -> Cow<'_, str> {
     let b = text.as_bytes();
     let lone = |i: usize| b[i] == b'\r' && b.get(i + 1) != Some(&b'\n');
     if !(0..b.len()).any(lone) {
@@ -557,7 +557,7 @@ const SKIPPED: &[&str] = &[
 /// `usemtl`, comments and the free-form statements (`SKIPPED`) pass. Anything else is not OBJ:
 /// the error names the file and line. Continuation lines (a trailing `\`) are joined first, as
 /// tobj joins them.
-pub fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {
+pub(crate) fn check_lines(text: &str, path: &Path) -> Result<(), MeshError> {
     let mut check = LineCheck::new(path);
     for (i, raw) in text.lines().enumerate() {
         check.line(i + 1, raw)?;
@@ -573,7 +573,7 @@ const MAX_LINE: usize = 16 << 20;
 /// `\r\n` or a lone `\r` (numbered as [`unix_line_ends`] numbers them), and each must be UTF-8.
 /// With `prefix`, only the lines within its first `prefix` bytes are checked (a quick look before
 /// a file is read whole). A PLY or glTF file passes: its own reader checks it.
-pub fn check_file(path: &Path, prefix: Option<u64>) -> Result<(), MeshError> {
+pub(crate) fn check_file(path: &Path, prefix: Option<u64>) -> Result<(), MeshError> {
     use std::io::Read as _;
     if check_format(path)? != Format::Obj {
         return Ok(());

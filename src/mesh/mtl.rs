@@ -14,13 +14,15 @@ use crate::input::{MTL_CAP, read_text_capped};
 /// an f32; `illum` is an integer 0–10; texture maps and other known statements are skipped; a
 /// statement before any `newmtl`, an unknown keyword, or a spectral or CIE XYZ colour is an error
 /// naming the file and line. A file that cannot be read is [`SceneError::MeshIo`].
-pub fn read_library(path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
+pub(crate) fn read_library(path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
     Ok(read_library_noting(path)?.0)
 }
 
 /// [`read_library`], with one warning line for every key the renderer does not use (once per
 /// key: `FILE:LINE: MTL key `map_Kd` is not used (texture maps are not read)`).
-pub fn read_library_noting(path: &Path) -> Result<(Vec<tobj::Material>, Vec<String>), SceneError> {
+pub(crate) fn read_library_noting(
+    path: &Path,
+) -> Result<(Vec<tobj::Material>, Vec<String>), SceneError> {
     let text =
         read_text_capped(path, MTL_CAP, "MTL files").map_err(|source| SceneError::MeshIo {
             file: path.to_path_buf(),
@@ -29,14 +31,14 @@ pub fn read_library_noting(path: &Path) -> Result<(Vec<tobj::Material>, Vec<Stri
     parse_library_noting(&text, path)
 }
 
-/// [`read_library`] of MTL text already read; `path` names the file in errors.
+/// `read_library` of MTL text already read; `path` names the file in errors.
 pub fn parse_library(text: &str, path: &Path) -> Result<Vec<tobj::Material>, SceneError> {
     Ok(parse_library_noting(text, path)?.0)
 }
 
 /// Why an MTL key is not used, or `None` for the keys the renderer reads (`newmtl`, `Ka`, `Kd`,
 /// `Ks`, `Ns`, `illum`).
-pub fn unused_reason(key: &str) -> Option<&'static str> {
+pub(crate) fn unused_reason(key: &str) -> Option<&'static str> {
     Some(match key {
         "newmtl" | "Ka" | "Kd" | "Ks" | "Ns" | "illum" => return None,
         _ if key.starts_with("map_")
@@ -52,7 +54,7 @@ pub fn unused_reason(key: &str) -> Option<&'static str> {
 }
 
 /// [`parse_library`], with [`read_library_noting`]'s warnings.
-pub fn parse_library_noting(
+pub(crate) fn parse_library_noting(
     text: &str,
     path: &Path,
 ) -> Result<(Vec<tobj::Material>, Vec<String>), SceneError> {
@@ -187,7 +189,7 @@ pub fn parse_library_noting(
 
 /// [`read_library`] in the form tobj's OBJ loader takes: the materials and their indices by name
 /// (a later material of the same name wins, as in tobj).
-pub fn tobj_library(path: &Path) -> Result<MtlLibrary, SceneError> {
+pub(crate) fn tobj_library(path: &Path) -> Result<MtlLibrary, SceneError> {
     let materials = read_library(path)?;
     let names = materials
         .iter()
@@ -198,7 +200,7 @@ pub fn tobj_library(path: &Path) -> Result<MtlLibrary, SceneError> {
 }
 
 /// What tobj's OBJ loader takes from a material library.
-pub type MtlLibrary = (Vec<tobj::Material>, HashMap<String, usize>);
+pub(crate) type MtlLibrary = (Vec<tobj::Material>, HashMap<String, usize>);
 
 /// At most 24 characters of `w`, escaped: words of a binary file quoted in messages.
 fn clip(w: &str) -> String {

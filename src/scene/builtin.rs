@@ -11,14 +11,11 @@ use super::{
 };
 use crate::error::SceneError;
 
-/// Names accepted by [`builtin`].
-pub const NAMES: [&str; 4] = ["spheres", "sibenik", "sibenik-shadows", "many-spheres"];
-
 /// Environment variable that overrides where the Sibenik mesh is looked for.
-pub const SIBENIK_ENV: &str = "WAVEFRONT_SIBENIK";
+pub(crate) const SIBENIK_ENV: &str = "WAVEFRONT_SIBENIK";
 
 /// The mesh path relative to the project root (SPEC §5).
-pub const SIBENIK_RELATIVE: &str = "../shared/data/sibenik/sibenik.obj";
+pub(crate) const SIBENIK_RELATIVE: &str = "../shared/data/sibenik/sibenik.obj";
 
 /// The built-in scene called `name`, or `None` when there is no such built-in.
 ///
@@ -219,13 +216,13 @@ pub fn sibenik(shadows: bool) -> Scene {
 }
 
 /// Where the built-in Sibenik scenes look for the mesh: `$WAVEFRONT_SIBENIK` if set, else
-/// [`SIBENIK_RELATIVE`] relative to the working directory (the project root, SPEC §5).
+/// `SIBENIK_RELATIVE` relative to the working directory (the project root, SPEC §5).
 pub fn sibenik_mesh_path() -> PathBuf {
     sibenik_mesh_path_in(Path::new(""))
 }
 
 /// [`sibenik_mesh_path`] for a project rooted at `root`: `$WAVEFRONT_SIBENIK` if set, else
-/// `root/`[`SIBENIK_RELATIVE`]. The one place the mesh's location is decided.
+/// `root/``SIBENIK_RELATIVE`. The one place the mesh's location is decided.
 pub fn sibenik_mesh_path_in(root: &Path) -> PathBuf {
     match std::env::var_os(SIBENIK_ENV) {
         Some(p) => PathBuf::from(p),
@@ -235,7 +232,7 @@ pub fn sibenik_mesh_path_in(root: &Path) -> PathBuf {
 
 /// The error for a mesh file that is not there; for the Sibenik mesh (a file named `sibenik.obj`)
 /// it says where to put it.
-pub fn missing_mesh(path: &Path) -> SceneError {
+pub(crate) fn missing_mesh(path: &Path) -> SceneError {
     SceneError::MissingMesh {
         path: path.to_path_buf(),
         sibenik: path.file_name().is_some_and(|n| n == "sibenik.obj"),
@@ -244,7 +241,7 @@ pub fn missing_mesh(path: &Path) -> SceneError {
 
 /// [`missing_mesh`] for a mesh of `scene`: a built-in Sibenik scene's mesh says where to put it
 /// whatever its name (it may come from `--mesh`).
-pub fn missing_scene_mesh(scene: &Scene, path: &Path) -> SceneError {
+pub(crate) fn missing_scene_mesh(scene: &Scene, path: &Path) -> SceneError {
     match missing_mesh(path) {
         SceneError::MissingMesh { path, sibenik } => SceneError::MissingMesh {
             path,

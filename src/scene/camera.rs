@@ -43,7 +43,13 @@ impl Camera {
     /// corner) inside pixel `pixel` of a `nx × ny` image. Every camera ray the project traces —
     /// the generate stage's, the benchmarks' and the peers' — comes from here.
     #[inline]
-    pub fn ray_direction(&self, pixel: PixelIndex, offset: (f32, f32), nx: u32, ny: u32) -> Vec3 {
+    pub(crate) fn ray_direction(
+        &self,
+        pixel: PixelIndex,
+        offset: (f32, f32),
+        nx: u32,
+        ny: u32,
+    ) -> Vec3 {
         let (i, j) = (pixel.0 % nx, pixel.0 / nx);
         self.direction(i as f32 + offset.0, j as f32 + offset.1, nx, ny)
             .normalize()

@@ -4,7 +4,7 @@
 //! Keys: frame `f` with consecutive keys `a.frame ≤ f ≤ b.frame` uses
 //! `s = (f − a.frame) / (b.frame − a.frame)`; a frame equal to a key uses that key exactly, so it
 //! renders as the key written as a static look-at camera. Linear paths mix every field with
-//! [`LookAt::lerp`]; Catmull–Rom paths run `eye` and `look_at` along centripetal (α = 0.5)
+//! `LookAt::lerp`; Catmull–Rom paths run `eye` and `look_at` along centripetal (α = 0.5)
 //! Catmull–Rom curves through the keys (end keys duplicated), `up` and `fov_y` linearly.
 //!
 //! Orbits: frame `f` of `N` puts the eye at `eye` rotated about the axis through `look_at` along
@@ -184,7 +184,7 @@ impl Orbit {
 /// `p[2]` (at `s = 1`), with `p[0]` and `p[3]` their outer neighbours (the Barry–Goldman
 /// pyramid over knots spaced by the square root of the distance between points). Coincident
 /// neighbours (duplicated end keys) add nothing; a segment whose ends coincide stays at them.
-pub fn centripetal_catmull_rom(p: [DVec3; 4], s: f64) -> DVec3 {
+pub(crate) fn centripetal_catmull_rom(p: [DVec3; 4], s: f64) -> DVec3 {
     let knot = |a: DVec3, b: DVec3| a.distance(b).sqrt();
     let t0 = 0.0;
     let t1 = t0 + knot(p[0], p[1]);

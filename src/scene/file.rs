@@ -28,7 +28,7 @@ pub const MAX_IMAGE_SIDE: u32 = 1 << 15;
 /// Largest accepted samples per pixel.
 pub const MAX_SAMPLES: u32 = 1 << 16;
 /// Largest accepted reflection depth.
-pub const MAX_DEPTH: u32 = 64;
+pub(crate) const MAX_DEPTH: u32 = 64;
 
 // Every product of the limits fits the type the renderer keeps it in, so validating each value
 // validates the products: pixels (`width × height`) index as `u32`, samples (`× samples`) count
@@ -219,7 +219,7 @@ struct RawMesh {
 }
 
 /// Reads and validates the scene file at `path` (a regular file of at most
-/// [`crate::input::SCENE_CAP`] bytes).
+/// `crate::input::SCENE_CAP` bytes).
 pub fn load(path: &Path) -> Result<Scene, SceneError> {
     parse(&read(path)?, path)
 }

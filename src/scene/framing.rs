@@ -20,15 +20,15 @@ use crate::error::SceneError;
 use crate::mesh::ObjMesh;
 
 /// The default direction from the box's centre to the eye.
-pub const DEFAULT_FROM: DVec3 = DVec3::new(1.0, 0.6, 1.0);
+pub(crate) const DEFAULT_FROM: DVec3 = DVec3::new(1.0, 0.6, 1.0);
 
 /// The default vertical field of view of a framed camera, in degrees.
-pub const DEFAULT_FOV_Y: f64 = 40.0;
+pub(crate) const DEFAULT_FOV_Y: f64 = 40.0;
 
 /// The look-at view of the box `lo..=hi` seen from direction `from` (need not be unit) with a
 /// vertical field of `fov_y` degrees on a `width × height` image; `None` when the box has no
 /// extent, `from` is zero or not finite. `up` is +y, or −z when `from` is vertical.
-pub fn frame_box(
+pub(crate) fn frame_box(
     lo: DVec3,
     hi: DVec3,
     from: DVec3,
@@ -62,7 +62,7 @@ pub fn frame_box(
 /// [`DEFAULT_FROM`] at [`DEFAULT_FOV_Y`] on a `width × height` image (512 × 512 unless
 /// `--size` says otherwise), one white point light at the eye (no falloff), a grey material
 /// (`kd = 0.8`, `ka = 0.1`), shadows on, no reflections. `mesh` is the file at `path` as read.
-pub fn bare_mesh(
+pub(crate) fn bare_mesh(
     path: &Path,
     mesh: &ObjMesh,
     (width, height): (u32, u32),
@@ -127,7 +127,7 @@ pub fn bare_mesh(
 }
 
 /// True when `path` names a mesh file rather than a scene file, by its extension.
-pub fn is_mesh_path(path: &Path) -> bool {
+pub(crate) fn is_mesh_path(path: &Path) -> bool {
     path.extension()
         .and_then(|e| e.to_str())
         .is_some_and(|e| ["obj", "ply", "gltf", "glb"].contains(&e.to_ascii_lowercase().as_str()))

@@ -15,7 +15,7 @@ use crate::mesh::gltf::{fail, read_document, walk};
 /// The glTF materials of a file as Blinn-Phong materials (SPEC §15), and what the triangle
 /// primitives of its default scene use.
 #[derive(Clone, Debug, PartialEq)]
-pub struct GltfMaterials {
+pub(crate) struct GltfMaterials {
     /// Every material of the file, in order, named `PREFIX:NAME` (or `PREFIX:#i` without a name).
     pub materials: Vec<Material>,
     /// Indices (into `materials`) some triangle primitive uses, in order of first use.
@@ -29,7 +29,7 @@ pub struct GltfMaterials {
 /// The glTF material `m` as a Blinn-Phong material named `name`: `kd = baseColor.rgb · (1 −
 /// metallic)`, `ks = 0.04 + (baseColor − 0.04) · metallic`, `p = 2 / max(roughness, 0.01)^4 − 2`
 /// (at most 10,000), `α = metallic · (1 − roughness)`, `ka = 0`.
-pub fn blinn_phong(m: &::gltf::Material, name: String) -> Material {
+pub(crate) fn blinn_phong(m: &::gltf::Material, name: String) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let [r, g, b, _] = pbr.base_color_factor().map(f64::from);
     let base = DVec3::new(r, g, b);
@@ -131,7 +131,7 @@ pub fn camera(path: &Path) -> Result<LookAt, MeshError> {
 /// A `KHR_lights_punctual` light in world coordinates: what it is, and its intensity
 /// (`color · intensity`, as given).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct GltfLight {
+pub(crate) struct GltfLight {
     /// Point, spot or directional, placed by its node's world transform.
     pub kind: GltfLightKind,
     /// `color · intensity` per channel.
@@ -140,7 +140,7 @@ pub struct GltfLight {
 
 /// The kinds of `KHR_lights_punctual` light. A light shines along its node's local −Z axis.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub enum GltfLightKind {
+pub(crate) enum GltfLightKind {
     /// A point light at the node's origin.
     Point {
         /// The node's origin in world coordinates.

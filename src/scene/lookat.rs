@@ -11,7 +11,7 @@ use super::Camera;
 
 /// The smallest accepted sine of the angle between `up` and the view direction: below it, `up`
 /// counts as parallel to the view and the basis is rejected rather than amplified from noise.
-pub const MIN_UP_SINE: f64 = 1e-9;
+pub(crate) const MIN_UP_SINE: f64 = 1e-9;
 
 /// A look-at view: where the eye is, what it looks at, which way is up, the vertical field of view.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -88,7 +88,7 @@ impl LookAt {
 
     /// The view a fraction `s` of the way from `a` to `b`: `(1 − s)·a + s·b` for every field,
     /// in f64 (exactly `a` at `s = 0` and exactly `b` at `s = 1`).
-    pub fn lerp(a: &LookAt, b: &LookAt, s: f64) -> LookAt {
+    pub(crate) fn lerp(a: &LookAt, b: &LookAt, s: f64) -> LookAt {
         if s == 0.0 {
             return *a;
         }

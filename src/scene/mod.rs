@@ -205,7 +205,7 @@ pub struct Material {
 
 impl Material {
     /// True when the material has a specular term to evaluate.
-    pub fn has_specular(&self) -> bool {
+    pub(crate) fn has_specular(&self) -> bool {
         self.ks != Vec3::ZERO
     }
 
@@ -344,19 +344,19 @@ impl Scene {
     }
 
     /// True when shadow rays are traced: shadows on, at least one light, shaded mode.
-    pub fn needs_shadows(&self) -> bool {
+    pub(crate) fn needs_shadows(&self) -> bool {
         self.render.mode == RenderMode::Shaded && self.render.shadows && !self.lights.is_empty()
     }
 
     /// True when some used material has a specular term and there is a light.
-    pub fn needs_specular(&self) -> bool {
+    pub(crate) fn needs_specular(&self) -> bool {
         self.render.mode == RenderMode::Shaded
             && !self.lights.is_empty()
             && self.used_materials().any(Material::has_specular)
     }
 
     /// Materials referenced by at least one primitive.
-    pub fn used_materials(&self) -> impl Iterator<Item = &Material> {
+    pub(crate) fn used_materials(&self) -> impl Iterator<Item = &Material> {
         let used = |m: u32| {
             self.spheres.iter().any(|s| s.material == m)
                 || self.planes.iter().any(|p| p.material == m)

@@ -1,7 +1,7 @@
 //! Materials from an OBJ's MTL libraries (SPEC §12): `[[mesh]] material = "mtl"`.
 //!
 //! At scene load the OBJ's `mtllib`, `usemtl` and `f` lines are scanned, its libraries read with
-//! [`crate::mesh::mtl::read_library`] (this crate's MTL reader, strict: a value that is not a finite, non-negative
+//! `crate::mesh::mtl::read_library` (this crate's MTL reader, strict: a value that is not a finite, non-negative
 //! number is an error naming the MTL file and line, as in a scene file; a colour with one or two
 //! components takes g and b from r, as MTL says), and every library material appended to the scene's materials — so the
 //! pipeline knows before any geometry is loaded which materials the mesh uses (no reflect stage
@@ -63,7 +63,7 @@ fn convert(prefix: &str, m: &tobj::Material) -> Material {
 /// Reads the MTL libraries of the OBJ at `obj`, appends their materials to `materials` (whose
 /// element `i` will be scene material `base + i`) and returns the binding. `fallback` is the
 /// mesh's `fallback_material`, if any.
-pub fn bind(
+pub(crate) fn bind(
     obj: &Path,
     fallback: Option<u32>,
     base: u32,
@@ -155,7 +155,7 @@ pub fn bind(
 /// `materials` (scene material `base + materials.len()` onwards), in file order. Primitives
 /// without a material take `fallback`; without one, that is an error. Ignored textures are one
 /// warning line.
-pub fn bind_gltf(
+pub(crate) fn bind_gltf(
     gltf: &Path,
     fallback: Option<u32>,
     base: u32,
@@ -198,7 +198,7 @@ pub fn bind_gltf(
 /// The warnings of loading `scene`: each mesh binding's ([`MtlBinding::warnings`]), then one
 /// line per scene material that no primitive can use (for example one defined beside
 /// `material = "mtl"`, whose faces take their MTL materials).
-pub fn load_warnings(scene: &super::Scene) -> Vec<String> {
+pub(crate) fn load_warnings(scene: &super::Scene) -> Vec<String> {
     let mut out: Vec<String> = scene
         .meshes
         .iter()

@@ -136,7 +136,7 @@ impl Setting {
 
 /// The image size `settings` ask for (`image.width`, `image.height`, each `None` when not set),
 /// for `what`, a scene without a file (a built-in or a bare mesh), to which no other key applies.
-pub fn image_size(
+pub(crate) fn image_size(
     settings: &[Setting],
     what: &str,
 ) -> Result<(Option<u32>, Option<u32>), SceneError> {
@@ -168,7 +168,7 @@ pub fn image_size(
 }
 
 /// The scene file at `path` with `settings` applied in order; see the module docs.
-pub fn load_with(path: &Path, settings: &[Setting]) -> Result<Scene, SceneError> {
+pub(crate) fn load_with(path: &Path, settings: &[Setting]) -> Result<Scene, SceneError> {
     let text = super::file::read(path)?;
     let mut scene = parse(&text, path)?;
     if settings.is_empty() {

@@ -34,7 +34,7 @@ pub struct Plane {
     pub material: u32,
 }
 
-/// A light in the render frame (SPEC §14). [`Light::toward`] and [`Light::attenuation`] are the
+/// A light in the render frame (SPEC §14). [`Light::toward`] and `Light::attenuation` are the
 /// one definition of where it lights from and how strongly; the shade stage's scalar and lane
 /// paths both use them.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -105,7 +105,7 @@ impl Light {
     /// The light's unit direction `l` from `p` for the geometric side test (zero at the light
     /// itself): `l` of a directional light, else `normalize_or_zero(position − p)`.
     #[inline]
-    pub fn side_direction(&self, p: Vec3) -> Vec3 {
+    pub(crate) fn side_direction(&self, p: Vec3) -> Vec3 {
         match self.emission {
             Emission::Directional { to_light } => to_light,
             _ => (self.position - p).normalize_or_zero(),
@@ -114,7 +114,7 @@ impl Light {
 
     /// Whether [`Light::attenuation`] can be anything but 1 (a spot light or `1/r²` falloff).
     #[inline]
-    pub fn attenuates(&self) -> bool {
+    pub(crate) fn attenuates(&self) -> bool {
         self.inverse_square || matches!(self.emission, Emission::Spot { .. })
     }
 
@@ -123,7 +123,7 @@ impl Light {
     /// the outer, `smoothstep` of the angle from the axis between) times `1 / dist²` with
     /// inverse-square falloff. 1 for a point light without falloff.
     #[inline]
-    pub fn attenuation(&self, l: Vec3, dist: f32) -> f32 {
+    pub(crate) fn attenuation(&self, l: Vec3, dist: f32) -> f32 {
         let mut s = 1.0f32;
         if let Emission::Spot {
             axis,

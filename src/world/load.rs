@@ -50,7 +50,7 @@ impl World {
     /// [`World::load_timed`] through a tree cache (`None`: build without one). A corrupt,
     /// truncated or stale entry is rebuilt and overwritten, with a warning in [`Setup`].
     ///
-    /// The warnings start with the scene's own ([`crate::scene::mtl::load_warnings`]: MTL keys
+    /// The warnings start with the scene's own (`crate::scene::mtl::load_warnings`: MTL keys
     /// and glTF textures not used, scene materials no primitive uses).
     pub fn load_cached(
         scene: &Scene,
@@ -165,7 +165,7 @@ impl World {
 /// The bytes of the mesh file `path` (checked before: [`super::check_mesh_file`]), after a look
 /// at its first MiB as it streams — a file that is not OBJ from the start (binary, NULs) fails
 /// at once in bounded memory — and, when `keyed`, what else its cache key is made of
-/// ([`crate::mesh::cache_sources`]).
+/// (`crate::mesh::cache_sources`).
 pub fn read_mesh_file(
     path: &std::path::Path,
     keyed: bool,
