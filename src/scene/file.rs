@@ -133,6 +133,65 @@ struct RawCamera {
     from: Option<Spanned<toml::Value>>,
 }
 
+/// The keys of `[camera]`'s explicit form besides `eye`.
+const EXPLICIT_KEYS: [&str; 5] = ["u", "v", "w", "window", "distance"];
+
+/// The keys of `[camera]`'s look-at form besides `eye`.
+const LOOK_AT_KEYS: [&str; 3] = ["look_at", "up", "fov_y"];
+
+impl RawCamera {
+    /// Every key of `[camera]` with where it was given (`None`: absent): the one list the
+    /// checks of which keys go together read. `[[camera.key]]` entries have no span of their
+    /// own, so `key_span` stands for them.
+    fn keys_given(&self, key_span: Range<usize>) -> [(&'static str, Option<Range<usize>>); 14] {
+        [
+            ("eye", self.eye.as_ref().map(Spanned::span)),
+            ("u", self.u.as_ref().map(Spanned::span)),
+            ("v", self.v.as_ref().map(Spanned::span)),
+            ("w", self.w.as_ref().map(Spanned::span)),
+            ("window", self.window.as_ref().map(Spanned::span)),
+            ("distance", self.distance.as_ref().map(Spanned::span)),
+            ("look_at", self.look_at.as_ref().map(Spanned::span)),
+            ("up", self.up.as_ref().map(Spanned::span)),
+            ("fov_y", self.fov_y.as_ref().map(Spanned::span)),
+            ("key", self.key.as_ref().map(|_| key_span)),
+            (
+                "interpolation",
+                self.interpolation.as_ref().map(Spanned::span),
+            ),
+            ("orbit", self.orbit.as_ref().map(Spanned::span)),
+            ("frame", self.frame.as_ref().map(Spanned::span)),
+            ("from", self.from.as_ref().map(Spanned::span)),
+        ]
+    }
+
+    /// The first of `among` (in its order) that is given, with its span.
+    fn first_given(
+        &self,
+        among: &[&'static str],
+        key_span: Range<usize>,
+    ) -> Option<(&'static str, Range<usize>)> {
+        let given = self.keys_given(key_span);
+        among.iter().find_map(|k| {
+            given
+                .iter()
+                .find(|(name, _)| name == k)
+                .and_then(|(name, sp)| sp.clone().map(|sp| (*name, sp)))
+        })
+    }
+}
+
+/// The first of `meshes` that is a glTF file: where `from = "gltf"` and `lights_from = "gltf"`
+/// read the camera and the lights.
+fn first_gltf(meshes: &[MeshRef]) -> Option<&MeshRef> {
+    meshes.iter().find(|m| {
+        matches!(
+            crate::mesh::check_format(&m.path),
+            Ok(crate::mesh::Format::Gltf | crate::mesh::Format::Glb)
+        )
+    })
+}
+
 /// `[camera.orbit]`: the eye circles `look_at` about `up` (SPEC §10).
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -810,23 +869,7 @@ impl Cx<'_> {
     ) -> Result<(Camera, Option<CameraPath>), SceneError> {
         let c = raw.get_ref();
         let span = |v: Option<Range<usize>>| v.unwrap_or(raw.span());
-        let explicit = [
-            ("u", c.u.as_ref().map(Spanned::span)),
-            ("v", c.v.as_ref().map(Spanned::span)),
-            ("w", c.w.as_ref().map(Spanned::span)),
-            ("window", c.window.as_ref().map(Spanned::span)),
-            ("distance", c.distance.as_ref().map(Spanned::span)),
-        ];
-        let look_at = [
-            ("look_at", c.look_at.as_ref().map(Spanned::span)),
-            ("up", c.up.as_ref().map(Spanned::span)),
-            ("fov_y", c.fov_y.as_ref().map(Spanned::span)),
-        ];
-        let first = |fields: &[(&'static str, Option<Range<usize>>)]| {
-            fields
-                .iter()
-                .find_map(|(k, sp)| sp.clone().map(|sp| (*k, sp)))
-        };
+        let given = |among: &[&'static str], key_span: Range<usize>| c.first_given(among, key_span);
         if let Some(i) = &c.interpolation
             && c.key.is_none()
         {
@@ -837,13 +880,8 @@ impl Cx<'_> {
             ));
         }
         if let Some(orbit) = &c.orbit {
-            let eye = c.eye.as_ref().map(|e| ("eye", e.span()));
-            let keys = c.key.as_ref().map(|_| ("key", orbit.span()));
-            if let Some((k, sp)) = keys
-                .or(eye)
-                .or_else(|| first(&explicit))
-                .or_else(|| first(&look_at))
-            {
+            let views = [&["key", "eye"][..], &EXPLICIT_KEYS, &LOOK_AT_KEYS].concat();
+            if let Some((k, sp)) = given(&views, orbit.span()) {
                 return Err(self.err(
                     sp,
                     format!("camera.{k}"),
@@ -853,8 +891,8 @@ impl Cx<'_> {
             return self.orbit(orbit, image);
         }
         if let Some(keys) = &c.key {
-            let eye = c.eye.as_ref().map(|e| ("eye", e.span()));
-            if let Some((k, sp)) = eye.or_else(|| first(&explicit)).or_else(|| first(&look_at)) {
+            let views = [&["eye"][..], &EXPLICIT_KEYS, &LOOK_AT_KEYS].concat();
+            if let Some((k, sp)) = given(&views, raw.span()) {
                 return Err(self.err(
                     sp,
                     format!("camera.{k}"),
@@ -887,8 +925,8 @@ impl Cx<'_> {
             };
             return Ok((camera, Some(path)));
         }
-        if let Some((k, sp)) = first(&look_at) {
-            if let Some((e, esp)) = first(&explicit) {
+        if let Some((k, sp)) = given(&LOOK_AT_KEYS, raw.span()) {
+            if let Some((e, esp)) = given(&EXPLICIT_KEYS, raw.span()) {
                 let (key, sp) = if esp.start > sp.start {
                     (e, esp)
                 } else {
@@ -940,11 +978,12 @@ impl Cx<'_> {
         let (Some(eye), Some(u), Some(v), Some(w), Some(window), Some(distance)) =
             (&c.eye, &c.u, &c.v, &c.w, &c.window, &c.distance)
         else {
-            let names = [("eye", c.eye.is_some())]
-                .into_iter()
-                .chain(explicit.iter().map(|(k, sp)| (*k, sp.is_some())));
-            let absent = names.filter(|(_, present)| !present).map(|(k, _)| k);
-            return Err(missing(absent.into_iter().next().unwrap_or("eye")));
+            let given = c.keys_given(raw.span());
+            let absent = ["eye"]
+                .iter()
+                .chain(&EXPLICIT_KEYS)
+                .find(|k| given.iter().any(|(name, sp)| name == *k && sp.is_none()));
+            return Err(missing(absent.copied().unwrap_or("eye")));
         };
         let win = window.get_ref();
         let cam = Camera {
@@ -1006,23 +1045,9 @@ impl Cx<'_> {
                 format!("unknown value {:?}; expected \"auto\"", frame.get_ref()),
             ));
         }
-        let others = [
-            ("eye", c.eye.as_ref().map(Spanned::span)),
-            ("u", c.u.as_ref().map(Spanned::span)),
-            ("v", c.v.as_ref().map(Spanned::span)),
-            ("w", c.w.as_ref().map(Spanned::span)),
-            ("window", c.window.as_ref().map(Spanned::span)),
-            ("distance", c.distance.as_ref().map(Spanned::span)),
-            ("look_at", c.look_at.as_ref().map(Spanned::span)),
-            ("up", c.up.as_ref().map(Spanned::span)),
-            ("interpolation", c.interpolation.as_ref().map(Spanned::span)),
-            ("orbit", c.orbit.as_ref().map(Spanned::span)),
-            ("key", c.key.as_ref().map(|_| frame.span())),
-        ];
-        if let Some((k, sp)) = others
-            .iter()
-            .find_map(|(k, sp)| sp.clone().map(|sp| (*k, sp)))
-        {
+        let others = [&["eye"][..], &EXPLICIT_KEYS, &["look_at", "up"]].concat();
+        let others = [others, vec!["interpolation", "orbit", "key"]].concat();
+        if let Some((k, sp)) = c.first_given(&others, frame.span()) {
             return Err(self.err(
                 sp,
                 format!("camera.{k}"),
@@ -1068,25 +1093,9 @@ impl Cx<'_> {
                 format!("unknown value {name:?}; expected \"gltf\" or a direction [x, y, z]"),
             ));
         }
-        let others = [
-            ("eye", c.eye.as_ref().map(Spanned::span)),
-            ("u", c.u.as_ref().map(Spanned::span)),
-            ("v", c.v.as_ref().map(Spanned::span)),
-            ("w", c.w.as_ref().map(Spanned::span)),
-            ("window", c.window.as_ref().map(Spanned::span)),
-            ("distance", c.distance.as_ref().map(Spanned::span)),
-            ("look_at", c.look_at.as_ref().map(Spanned::span)),
-            ("up", c.up.as_ref().map(Spanned::span)),
-            ("fov_y", c.fov_y.as_ref().map(Spanned::span)),
-            ("interpolation", c.interpolation.as_ref().map(Spanned::span)),
-            ("orbit", c.orbit.as_ref().map(Spanned::span)),
-            ("frame", c.frame.as_ref().map(Spanned::span)),
-            ("key", c.key.as_ref().map(|_| from.span())),
-        ];
-        if let Some((k, sp)) = others
-            .iter()
-            .find_map(|(k, sp)| sp.clone().map(|sp| (*k, sp)))
-        {
+        let others = [&["eye"][..], &EXPLICIT_KEYS, &LOOK_AT_KEYS].concat();
+        let others = [others, vec!["interpolation", "orbit", "frame", "key"]].concat();
+        if let Some((k, sp)) = c.first_given(&others, from.span()) {
             return Err(self.err(
                 sp,
                 format!("camera.{k}"),
@@ -1105,14 +1114,7 @@ impl Cx<'_> {
         meshes: &[MeshRef],
     ) -> Result<Camera, SceneError> {
         let fail = |message: String| self.err(span.clone(), "camera.from", message);
-        let gltf = meshes
-            .iter()
-            .find(|m| {
-                matches!(
-                    crate::mesh::check_format(&m.path),
-                    Ok(crate::mesh::Format::Gltf | crate::mesh::Format::Glb)
-                )
-            })
+        let gltf = first_gltf(meshes)
             .ok_or_else(|| fail("from = \"gltf\" needs a [[mesh]] that is a glTF file".into()))?;
         let view = crate::scene::gltf::camera(&gltf.path)
             .map_err(|e| fail(format!("no camera: {}", crate::error::chain(&e))))?;
@@ -1135,14 +1137,7 @@ impl Cx<'_> {
                 from.get_ref()
             )));
         }
-        let gltf = meshes
-            .iter()
-            .find(|m| {
-                matches!(
-                    crate::mesh::check_format(&m.path),
-                    Ok(crate::mesh::Format::Gltf | crate::mesh::Format::Glb)
-                )
-            })
+        let gltf = first_gltf(meshes)
             .ok_or_else(|| fail("needs a [[mesh]] that is a glTF file".into()))?;
         let found =
             crate::scene::gltf::lights(&gltf.path).map_err(|e| fail(crate::error::chain(&e)))?;
