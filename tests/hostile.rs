@@ -494,6 +494,28 @@ fn exr_bytes_are_the_same_on_every_write() {
 
 // Case 15.
 
+/// A 3 × 3 scene in `dir` of one triangle facing the camera at z = -5, spanning ±`s` around the
+/// view axis, lit by a point light at the eye.
+fn huge_triangle_scene(dir: &Scratch, s: f64, shadows: bool) -> wavefront::Scene {
+    dir.write(
+        "t.obj",
+        &format!(
+            "v {} {} -5\nv {} {} -5\nv 0 {} -5\nf 1 2 3\n",
+            -s, -s, s, -s, s
+        ),
+    );
+    let scene = dir.write(
+        "s.toml",
+        &format!(
+            "[image]\nwidth = 3\nheight = 3\n\n{}[render]\nshadows = {shadows}\n\n\
+             [[light]]\nposition = [0.0, 0.0, 0.0]\n\n\
+             [[mesh]]\npath = \"t.obj\"\nmaterial = \"floor\"\n",
+            scene_text("")
+        ),
+    );
+    load(&scene).unwrap_or_else(|e| panic!("{}", chain(&e)))
+}
+
 #[test]
 fn a_huge_triangle_is_shaded_like_a_small_one() {
     // A triangle facing the camera at z = -5, spanning ±1 or ±1e18 around the view axis, lit
@@ -501,23 +523,7 @@ fn a_huge_triangle_is_shaded_like_a_small_one() {
     // shadow rays: their offsets at such sizes are the other half of case 15, not mended here.
     let dir = Scratch::new("hostile-huge-triangle");
     let centre = |s: f64| {
-        dir.write(
-            "t.obj",
-            &format!(
-                "v {} {} -5\nv {} {} -5\nv 0 {} -5\nf 1 2 3\n",
-                -s, -s, s, -s, s
-            ),
-        );
-        let scene = dir.write(
-            "s.toml",
-            &format!(
-                "[image]\nwidth = 3\nheight = 3\n\n{}[render]\nshadows = false\n\n\
-                 [[light]]\nposition = [0.0, 0.0, 0.0]\n\n\
-                 [[mesh]]\npath = \"t.obj\"\nmaterial = \"floor\"\n",
-                scene_text("")
-            ),
-        );
-        let scene = load(&scene).unwrap_or_else(|e| panic!("{}", chain(&e)));
+        let scene = huge_triangle_scene(&dir, s, false);
         let film = wavefront_kit::testkit::render_film_with(&scene, Default::default());
         film.pixels[4]
     };
@@ -537,23 +543,7 @@ fn a_triangle_beyond_the_f32_triangle_test_is_an_error_not_a_black_image() {
     // naming the file and the limit, on every load path (the tree cache's and the direct one).
     let dir = Scratch::new("hostile-beyond-f32-test");
     for s in [1e13f64, 1e18, 1e19] {
-        dir.write(
-            "t.obj",
-            &format!(
-                "v {} {} -5\nv {} {} -5\nv 0 {} -5\nf 1 2 3\n",
-                -s, -s, s, -s, s
-            ),
-        );
-        let scene = dir.write(
-            "s.toml",
-            &format!(
-                "[image]\nwidth = 3\nheight = 3\n\n{}[render]\nshadows = true\n\n\
-                 [[light]]\nposition = [0.0, 0.0, 0.0]\n\n\
-                 [[mesh]]\npath = \"t.obj\"\nmaterial = \"floor\"\n",
-                scene_text("")
-            ),
-        );
-        let scene = load(&scene).unwrap_or_else(|e| panic!("{}", chain(&e)));
+        let scene = huge_triangle_scene(&dir, s, true);
         let e = World::load(&scene)
             .map(|_| ())
             .expect_err("a mesh beyond the limit");

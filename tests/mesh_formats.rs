@@ -212,24 +212,28 @@ fn gltf_materials_map_to_blinn_phong_and_textures_are_a_warning() {
     );
 }
 
+/// `gltf` (one scene of node 0, the mesh) with a second scene node: `tail` is that node's JSON
+/// object, then the `]` closing the node list and any top-level keys to add after it.
+fn with_node(gltf: String, tail: &str) -> String {
+    gltf.replace(
+        r#""scenes": [{"nodes": [0]}]"#,
+        r#""scenes": [{"nodes": [0, 2]}]"#,
+    )
+    .replace(r#"{"mesh": 0}]"#, &format!(r#"{{"mesh": 0}}, {tail}"#))
+}
+
 #[test]
 fn the_camera_can_come_from_the_gltf_file() {
     let dir = Scratch::new("gltf-camera");
     let mesh = PolyMesh::bumpy(3);
     // A camera node at (1, 2, 10) turned 90° about +y (its −z axis looks along −x), yfov 0.5 rad.
     let s = std::f64::consts::FRAC_1_SQRT_2;
-    let text = mesh
-        .gltf_embedded(None)
-        .replace(
-            r#""scenes": [{"nodes": [0]}]"#,
-            r#""scenes": [{"nodes": [0, 2]}]"#,
-        )
-        .replace(
-            r#"{"mesh": 0}]"#,
-            &format!(
-                r#"{{"mesh": 0}}, {{"camera": 0, "translation": [1.0, 2.0, 10.0], "rotation": [0.0, {s}, 0.0, {s}]}}], "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.5, "znear": 0.1}}}}]"#
-            ),
-        );
+    let text = with_node(
+        mesh.gltf_embedded(None),
+        &format!(
+            r#"{{"camera": 0, "translation": [1.0, 2.0, 10.0], "rotation": [0.0, {s}, 0.0, {s}]}}], "cameras": [{{"type": "perspective", "perspective": {{"yfov": 0.5, "znear": 0.1}}}}]"#
+        ),
+    );
     dir.write("c.gltf", &text);
     let toml = scene_text("c.gltf", "m").replace(
         "eye = [3.5, 2.5, 4.0]\nlook_at = [0.25, -1.2, 0.75]\nup = [0.0, 1.0, 0.0]\nfov_y = 45.0\n",
@@ -323,19 +327,14 @@ fn gltf_lights_become_spec_14_lights_with_inverse_square_falloff() {
     let dir = Scratch::new("gltf-lights");
     let mesh = PolyMesh::bumpy(3);
     let with_light = |kind: &str| {
-        mesh.gltf_embedded(None)
-            .replace(
-                r#""scenes": [{"nodes": [0]}]"#,
-                r#""scenes": [{"nodes": [0, 2]}]"#,
-            )
-            .replace(
-                r#"{"mesh": 0}]"#,
-                &format!(
-                    r#"{{"mesh": 0}}, {{"translation": [1.5, 3.0, -2.0], "extensions": {{"KHR_lights_punctual": {{"light": 0}}}}}}],
+        with_node(
+            mesh.gltf_embedded(None),
+            &format!(
+                r#"{{"translation": [1.5, 3.0, -2.0], "extensions": {{"KHR_lights_punctual": {{"light": 0}}}}}}],
   "extensionsUsed": ["KHR_lights_punctual"],
   "extensions": {{"KHR_lights_punctual": {{"lights": [{kind}]}}}}"#
-                ),
-            )
+            ),
+        )
     };
     let toml =
         scene_text("p.gltf", "m").replace("[render]\n", "[render]\nlights_from = \"gltf\"\n");
