@@ -503,23 +503,24 @@ fn small(
     };
     let (axis, s) = (split.axis, split.pos);
     let (lb, rb) = split_box(&bx, axis, s);
-    // Side of each triangle and its index in each child (local indices fit in 6 bits).
-    let mut side = [0u8; SMALL];
-    let mut local = [[0u8; SMALL]; 2];
+    // Per triangle: its side in bits 0-1 and its index in the left and right child in bits
+    // 8-15 and 16-23 (local indices fit in 6 bits), so filtering an event reads one word.
+    let mut info = [0u32; SMALL];
     let (ids_mark, ev_mark) = (arena.ids.len(), arena.events.len());
     let mut counts = [0usize; 2];
     for (c, cb) in [(0usize, &lb), (1, &rb)] {
         let me = 1u8 << c;
-        for i in 0..n {
+        for (i, x) in info[..n].iter_mut().enumerate() {
             let b = arena.bounds[first + i];
             let sd = if c == 0 {
-                classify(&b, &split)
+                let sd = classify(&b, &split);
+                *x = sd as u32;
+                sd
             } else {
-                side[i]
+                *x as u8 & 3
             };
-            side[i] = sd;
             if sd & me != 0 {
-                local[c][i] = counts[c] as u8;
+                *x |= (counts[c] as u32) << (8 + 8 * c);
                 counts[c] += 1;
                 let id = arena.ids[first + i];
                 arena.ids.push(id);
@@ -529,50 +530,54 @@ fn small(
             }
         }
     }
-    let at = |e: u64, l: u8| (e & !0x3fff_ffff) | l as u64;
+    let straddlers = info[..n].iter().filter(|&&x| x & 3 == 3).count();
+    let at = |e: u64, l: u32| (e & !0x3fff_ffff) | l as u64;
     let mut child_ranges = [[(0usize, 0usize); 3]; 2];
-    for c in 0..2 {
-        let me = 1u8 << c;
-        // The straddlers' event re-made at the plane: the left child's end, the right's start.
-        let (moved, dropped) = if c == 0 { (END, END) } else { (START, START) };
-        for (a, range) in ranges.iter().enumerate() {
-            let start = arena.events.len();
-            if a == axis && c == 1 {
-                // Straddlers start at the plane, before every other event of the right child.
-                for i in 0..n {
-                    if side[i] == 3 {
-                        arena.events.push(event(s, moved, local[1][i] as u32));
-                    }
+    for (a, range) in ranges.iter().enumerate() {
+        // Both children's lists in one pass: room for every event and the straddlers' re-made
+        // ones on each side; each event is written to both, and each write position advances
+        // only for kept ones (without branching on the side, which is unpredictable).
+        let len = range.1 - range.0;
+        let split_axis = a == axis;
+        let base_l = arena.events.len();
+        let base_r = base_l + len + straddlers;
+        arena.events.resize(base_r + len + straddlers, 0);
+        let (src, dst) = arena.events.split_at_mut(base_l);
+        let src = &src[range.0..range.1];
+        let (mut kl, mut kr) = (0usize, len + straddlers);
+        if split_axis {
+            // Straddlers start at the plane, before every other event of the right child.
+            for &x in &info[..n] {
+                if x & 3 == 3 {
+                    dst[kr] = event(s, START, (x >> 16) & 0xff);
+                    kr += 1;
                 }
             }
-            // Filtered without branching on the side (unpredictable): every event is written
-            // and the write position advances only for kept ones.
-            let mut w = arena.events.len();
-            arena.events.resize(w + (range.1 - range.0), 0);
-            let (src, dst) = arena.events.split_at_mut(w);
-            let dst = &mut dst[..];
-            let mut k_out = 0usize;
-            let split_axis = a == axis;
-            for &e in &src[range.0..range.1] {
-                let i = (e & 0x3fff_ffff) as usize;
-                let sd = side[i];
-                let drop = split_axis & (sd == 3) & ((e >> 30) & 3 == dropped);
-                let keep = (sd & me != 0) & !drop;
-                dst[k_out] = at(e, local[c][i]);
-                k_out += keep as usize;
-            }
-            w += k_out;
-            arena.events.truncate(w);
-            if a == axis && c == 0 {
-                // Straddlers end at the plane, after every other event of the left child.
-                for i in 0..n {
-                    if side[i] == 3 {
-                        arena.events.push(event(s, moved, local[0][i] as u32));
-                    }
-                }
-            }
-            child_ranges[c][a] = (start, arena.events.len());
         }
+        for &e in src {
+            let x = info[(e & 0x3fff_ffff) as usize];
+            let kind = (e >> 30) & 3;
+            let straddles = split_axis & (x & 3 == 3);
+            // A straddler's end goes from the left child and its start from the right child:
+            // both are re-made at the plane.
+            let keep_l = (x & 1 != 0) & !(straddles & (kind == END));
+            let keep_r = (x & 2 != 0) & !(straddles & (kind == START));
+            dst[kl] = at(e, (x >> 8) & 0xff);
+            kl += keep_l as usize;
+            dst[kr] = at(e, (x >> 16) & 0xff);
+            kr += keep_r as usize;
+        }
+        if split_axis {
+            // Straddlers end at the plane, after every other event of the left child.
+            for &x in &info[..n] {
+                if x & 3 == 3 {
+                    dst[kl] = event(s, END, (x >> 8) & 0xff);
+                    kl += 1;
+                }
+            }
+        }
+        child_ranges[0][a] = (base_l, base_l + kl);
+        child_ranges[1][a] = (base_r, base_l + kr);
     }
     let here = out.nodes.len();
     out.nodes.push(KdNode::inner(axis, s, 0));
