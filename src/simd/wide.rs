@@ -23,7 +23,7 @@ use super::{Kernel, Level, dispatch};
 
 /// `f32` lanes of one width with their comparison mask.
 pub(crate) trait Wide: Copy {
-    /// Lanes per value (at most 16).
+    /// Lanes per value (at most 32).
     const LANES: usize;
     /// Per-lane truth values.
     type Mask: Copy;
@@ -99,6 +99,90 @@ impl<K: WideKernel> Kernel for ByLevel<K> {
             Level::Avx2 => self.0.run::<x86::F32x8>(),
             _ => self.0.run::<Portable8>(),
         }
+    }
+}
+
+/// Two [`Wide`] values side by side as one of twice the lanes (at most 32: the mask bits fit a
+/// `u32`): lanes `0..V::LANES` in the first, the rest in the second. Each operation is the
+/// operation of `V` on both halves, so it has the same per-lane semantics.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Pair<V>(V, V);
+
+impl<V: Wide> Wide for Pair<V> {
+    const LANES: usize = 2 * V::LANES;
+    type Mask = (V::Mask, V::Mask);
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        Pair(V::splat(x), V::splat(x))
+    }
+    #[inline(always)]
+    fn load(a: &[f32]) -> Self {
+        Pair(V::load(a), V::load(&a[V::LANES..]))
+    }
+    #[inline(always)]
+    fn store(self, a: &mut [f32]) {
+        self.0.store(a);
+        self.1.store(&mut a[V::LANES..]);
+    }
+    #[inline(always)]
+    fn add(self, o: Self) -> Self {
+        Pair(self.0.add(o.0), self.1.add(o.1))
+    }
+    #[inline(always)]
+    fn sub(self, o: Self) -> Self {
+        Pair(self.0.sub(o.0), self.1.sub(o.1))
+    }
+    #[inline(always)]
+    fn mul(self, o: Self) -> Self {
+        Pair(self.0.mul(o.0), self.1.mul(o.1))
+    }
+    #[inline(always)]
+    fn div(self, o: Self) -> Self {
+        Pair(self.0.div(o.0), self.1.div(o.1))
+    }
+    #[inline(always)]
+    fn min(self, o: Self) -> Self {
+        Pair(self.0.min(o.0), self.1.min(o.1))
+    }
+    #[inline(always)]
+    fn max(self, o: Self) -> Self {
+        Pair(self.0.max(o.0), self.1.max(o.1))
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        Pair(self.0.abs(), self.1.abs())
+    }
+    #[inline(always)]
+    fn lt(self, o: Self) -> Self::Mask {
+        (self.0.lt(o.0), self.1.lt(o.1))
+    }
+    #[inline(always)]
+    fn le(self, o: Self) -> Self::Mask {
+        (self.0.le(o.0), self.1.le(o.1))
+    }
+    #[inline(always)]
+    fn gt(self, o: Self) -> Self::Mask {
+        (self.0.gt(o.0), self.1.gt(o.1))
+    }
+    #[inline(always)]
+    fn eq(self, o: Self) -> Self::Mask {
+        (self.0.eq(o.0), self.1.eq(o.1))
+    }
+    #[inline(always)]
+    fn and(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        (V::and(a.0, b.0), V::and(a.1, b.1))
+    }
+    #[inline(always)]
+    fn or(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        (V::or(a.0, b.0), V::or(a.1, b.1))
+    }
+    #[inline(always)]
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+        Pair(V::select(m.0, a.0, b.0), V::select(m.1, a.1, b.1))
+    }
+    #[inline(always)]
+    fn bits(m: Self::Mask) -> u32 {
+        V::bits(m.0) | V::bits(m.1) << V::LANES
     }
 }
 
@@ -444,8 +528,13 @@ mod tests {
             ];
             let n = V::LANES;
             for shift in 0..special.len() {
-                let a: Vec<f32> = (0..n).map(|k| special[(k + shift) % 16]).collect();
-                let b: Vec<f32> = (0..n).map(|k| special[(3 * k + 1) % 16]).collect();
+                // (Lanes past 16, of a `Pair`, get other pairs of values than the first 16.)
+                let a: Vec<f32> = (0..n)
+                    .map(|k| special[(k + shift + k / 16 * 5) % 16])
+                    .collect();
+                let b: Vec<f32> = (0..n)
+                    .map(|k| special[(3 * k + 1 + k / 16 * 7) % 16])
+                    .collect();
                 let (va, vb) = (V::load(&a), V::load(&b));
                 let mut out = vec![0.0; n];
                 let check = |v: V, f: &dyn Fn(f32, f32) -> f32, out: &mut Vec<f32>| {
@@ -502,6 +591,29 @@ mod tests {
             let want = match level {
                 Level::Avx512 => 16,
                 _ => 8,
+            };
+            assert_eq!(lanes, want, "{level:?}");
+        }
+    }
+
+    /// [`Check`] over [`Pair`]s of the level's lanes.
+    struct PairCheck;
+
+    impl WideKernel for PairCheck {
+        type Output = usize;
+        #[inline(always)]
+        fn run<V: Wide>(self) -> usize {
+            Check.run::<Pair<V>>()
+        }
+    }
+
+    #[test]
+    fn pairs_compute_the_scalar_bits_at_twice_the_width() {
+        for level in Level::supported() {
+            let lanes = dispatch_wide(level, PairCheck);
+            let want = match level {
+                Level::Avx512 => 32,
+                _ => 16,
             };
             assert_eq!(lanes, want, "{level:?}");
         }

@@ -13,7 +13,7 @@
 //!   `hit4`: one triangle against a packet's 4 rays;
 //! - `frustum`: 64-ray frusta for closest-hit batches; `bundle`: light-rooted shadow bundles
 //!   for occluded batches (both over [`crate::simd`]'s `Wide` lanes: 16 with AVX-512, 8
-//!   otherwise);
+//!   otherwise; a bundle is two of them, 32 or 16 rays);
 //! - [`crate::simd`]: the SIMD lanes and dispatch (the crate's one `unsafe` module).
 //!
 //! **Which loop a query takes** (every path gives the single-ray answer, bit for bit):
@@ -217,7 +217,7 @@ impl KdAccel {
 
     /// [`KdAccel::intersect_occluded`] for many rays into `out`, identical to it ray for ray.
     /// Rays whose far ends (`o + t_max·d`) meet at a shared point — shadow rays toward a point
-    /// light — are traced from that point as light-rooted bundles of 8 or 16 rays (`bundle`:
+    /// light — are traced from that point as light-rooted bundles of 16 or 32 rays (`bundle`:
     /// culling from the light, each triangle tested in the ray's own frame); any others as
     /// 4-ray packets (see [`KdAccel::intersect_closest_batch`]). Batches of about
     /// [`KdAccel::OCCLUDED_BATCH`] rays bundle best. Panics if the lengths differ.
