@@ -3,7 +3,7 @@
 //! `sibenik-shadows`, then traces them `REPEAT` times through the batch queries in the chunks the
 //! stages use, on the current thread, and prints Mrays/s per kernel.
 //!
-//! usage: `cargo run --release --example trace_sibenik -- [closest|occluded|both] [REPEAT]`
+//! usage: `cargo run --release -p wavefront-kit --example trace_sibenik -- [closest|occluded|both] [REPEAT]`
 //! (mesh from `$WAVEFRONT_SIBENIK` or `../shared/data/sibenik/sibenik.obj`). Under
 //! `valgrind --tool=callgrind` use REPEAT 1 and one kernel for instruction counts.
 

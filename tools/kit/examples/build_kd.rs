@@ -2,7 +2,7 @@
 //! Loads a mesh once, then builds the default SAH tree `REPEAT` times on the current thread
 //! pool and prints the best wall time, the phases and the tree's statistics.
 //!
-//! usage: `cargo run --release --example build_kd -- [MESH.obj] [REPEAT] [exact]` (default
+//! usage: `cargo run --release -p wavefront-kit --example build_kd -- [MESH.obj] [REPEAT] [exact]` (default
 //! `../shared/data/sibenik/sibenik.obj`, 5; `exact` builds the exact-sweep reference tree).
 //! Under `valgrind --tool=callgrind` use REPEAT 1 and `RAYON_NUM_THREADS=1`.
 
