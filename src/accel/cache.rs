@@ -26,7 +26,7 @@ use crate::accel::kdtree::{BuildMethod, KdNode, KdTree, MAX_DEPTH};
 
 /// Format version: bump whenever the layout or anything that changes a cached result (the
 /// builders, the OBJ reader) changes.
-pub const CACHE_VERSION: u32 = 2;
+pub(crate) const CACHE_VERSION: u32 = 2;
 
 /// `b"WFKDTREE"` read as a native-endian `u64`: a file written on a machine of the other
 /// endianness fails this check.
@@ -80,14 +80,14 @@ impl CacheKey {
     }
 
     /// The key as 32 hexadecimal digits (the entry's file stem).
-    pub fn hex(self) -> String {
+    pub(crate) fn hex(self) -> String {
         format!("{:032x}", self.0)
     }
 }
 
 /// Reads a whole file in parallel 1 MiB pieces (positioned reads, so both cores copy from the page
 /// cache at once).
-pub fn read_parallel(path: &Path) -> io::Result<Vec<u8>> {
+pub(crate) fn read_parallel(path: &Path) -> io::Result<Vec<u8>> {
     use std::os::unix::fs::FileExt;
     let (file, len) = crate::input::open_regular(path)?;
     let len = usize::try_from(len).map_err(|_| io::Error::from(io::ErrorKind::OutOfMemory))?;

@@ -124,7 +124,12 @@ impl WatertightRay {
     /// triangle `(p0, p1, p2)`, from the same edge functions as [`WatertightRay::intersect`]
     /// (`b0 = U/det`, weight of `p0`, …). `None` for a triangle seen edge-on (`det = 0`).
     #[inline]
-    pub fn barycentrics(&self, p0: [f32; 3], p1: [f32; 3], p2: [f32; 3]) -> Option<[f32; 3]> {
+    pub(crate) fn barycentrics(
+        &self,
+        p0: [f32; 3],
+        p1: [f32; 3],
+        p2: [f32; 3],
+    ) -> Option<[f32; 3]> {
         let o = self.origin.to_array();
         let (kx, ky, kz) = (self.kx.min(2), self.ky.min(2), self.kz.min(2));
         let shear = |p: [f32; 3]| {
@@ -148,7 +153,7 @@ impl WatertightRay {
 /// barycentric coordinates (for interpolated shading normals). `None` when the ray cannot be
 /// prepared or sees the triangle edge-on.
 #[inline]
-pub fn hit_point(origin: Vec3, dir: Vec3, tri: [Vec3; 3]) -> Option<(Vec3, Vec3, [f32; 3])> {
+pub(crate) fn hit_point(origin: Vec3, dir: Vec3, tri: [Vec3; 3]) -> Option<(Vec3, Vec3, [f32; 3])> {
     let ray = WatertightRay::new(origin, dir)?;
     let b = ray.barycentrics(tri[0].into(), tri[1].into(), tri[2].into())?;
     let (q0, q1, q2) = (b[0] * tri[0], b[1] * tri[1], b[2] * tri[2]);
@@ -159,7 +164,7 @@ pub fn hit_point(origin: Vec3, dir: Vec3, tri: [Vec3; 3]) -> Option<(Vec3, Vec3,
 
 /// A ray prepared for one ray/triangle test: traversal is generic over it, so the default
 /// (watertight) path is monomorphised and pays nothing for the alternative.
-pub trait TriangleRay: Sized {
+pub(crate) trait TriangleRay: Sized {
     /// Prepares a ray; `None` when the direction cannot hit anything.
     fn prepare(origin: Vec3, dir: Vec3) -> Option<Self>;
     /// Hit distance `t` with `0 < t < t_max` against triangle `(p0, p1, p2)`, or `None`.
@@ -180,7 +185,7 @@ impl TriangleRay for WatertightRay {
 
 /// A ray for the Möller–Trumbore test (see [`intersect_moller_trumbore`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MollerTrumboreRay {
+pub(crate) struct MollerTrumboreRay {
     /// Ray origin.
     pub origin: Vec3,
     /// Ray direction (unnormalised).
@@ -206,8 +211,9 @@ impl TriangleRay for MollerTrumboreRay {
 }
 
 /// Watertight intersection of one ray with one triangle (convenience wrapper; traversal should
-/// reuse a [`WatertightRay`]).
-pub fn intersect_watertight(origin: Vec3, dir: Vec3, tri: [Vec3; 3], t_max: f32) -> Option<f32> {
+/// reuse a [`WatertightRay`]); the tests' form.
+#[cfg(test)]
+fn intersect_watertight(origin: Vec3, dir: Vec3, tri: [Vec3; 3], t_max: f32) -> Option<f32> {
     WatertightRay::new(origin, dir)?.intersect(
         tri[0].to_array(),
         tri[1].to_array(),
@@ -219,7 +225,7 @@ pub fn intersect_watertight(origin: Vec3, dir: Vec3, tri: [Vec3; 3], t_max: f32)
 /// Möller–Trumbore intersection (not watertight; kept only to compare against the default
 /// test). Same conventions: `0 < t < t_max`, zero determinant never hits, never NaN.
 #[inline]
-pub fn intersect_moller_trumbore(
+pub(crate) fn intersect_moller_trumbore(
     origin: Vec3,
     dir: Vec3,
     tri: [Vec3; 3],

@@ -35,7 +35,7 @@ pub fn read_bytes(path: &Path, bytes: &[u8]) -> Result<ObjMesh, MeshError> {
 }
 
 /// Positions (f64) and triangles, as [`ObjMesh`] holds them.
-pub type Parsed = (Vec<[f64; 3]>, Vec<[u32; 3]>);
+pub(crate) type Parsed = (Vec<[f64; 3]>, Vec<[u32; 3]>);
 
 /// One face corner: `(v, vt, vn)` resolved to 0-based indices (wrapped as tobj wraps them).
 type Corner = (u64, u64, u64);

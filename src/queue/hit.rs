@@ -6,7 +6,7 @@ use glam::Vec3;
 use super::SampleSlot;
 
 /// Which primitive a ray hit: spheres first, then planes, then triangles, numbered consecutively
-/// (see [`crate::world::World::prim_kind`]). [`PrimId::NONE`] is a miss.
+/// (see `crate::world::World::prim_kind`). [`PrimId::NONE`] is a miss.
 #[repr(transparent)]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord, Hash, Pod, Zeroable)]
 pub struct PrimId(pub u32);

@@ -47,7 +47,7 @@ pub struct Setup {
 }
 
 impl World {
-    /// [`World::load_timed`] through a tree cache (`None`: build without one). A corrupt,
+    /// `World::load_timed` through a tree cache (`None`: build without one). A corrupt,
     /// truncated or stale entry is rebuilt and overwritten, with a warning in [`Setup`].
     ///
     /// The warnings start with the scene's own (`crate::scene::mtl::load_warnings`: MTL keys

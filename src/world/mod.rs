@@ -38,7 +38,7 @@ pub enum LoadError {
 
 /// What kind of primitive a [`PrimId`] names, with its index within that kind.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum PrimKind {
+pub(crate) enum PrimKind {
     /// `spheres[i]`.
     Sphere(usize),
     /// `planes[i]`.
@@ -111,7 +111,7 @@ impl Triangles {
     /// The interpolated unit vertex normal of triangle `k` at barycentric coordinates `b`, or
     /// `None` where its mesh shades with geometric normals.
     #[inline]
-    pub fn shading_normal(&self, k: usize, b: [f32; 3]) -> Option<Vec3> {
+    pub(crate) fn shading_normal(&self, k: usize, b: [f32; 3]) -> Option<Vec3> {
         if self.vertex_normals.is_empty() {
             return None;
         }
@@ -175,7 +175,7 @@ impl World {
     }
 
     /// [`World::load`], also saying how long loading and building took.
-    pub fn load_timed(scene: &Scene) -> Result<(World, SetupTimes), LoadError> {
+    pub(crate) fn load_timed(scene: &Scene) -> Result<(World, SetupTimes), LoadError> {
         let (world, setup) = World::load_cached(scene, None)?;
         Ok((world, setup.times))
     }
@@ -311,7 +311,7 @@ impl World {
 
     /// Decodes a primitive id.
     #[inline]
-    pub fn prim_kind(&self, id: PrimId) -> PrimKind {
+    pub(crate) fn prim_kind(&self, id: PrimId) -> PrimKind {
         let i = id.0 as usize;
         let ns = self.spheres.len();
         let np = self.planes.len();
@@ -628,7 +628,7 @@ impl World {
 }
 
 /// Checks the tree file `path` against the mesh of `positions` (world coordinates) and
-/// `indices` with [`KdTree::validate_file`], and returns the tree and the mesh it was checked
+/// `indices` with `KdTree::validate_file`, and returns the tree and the mesh it was checked
 /// with. A file's numbers are exact in the frame its tree was built in, where the check is exact
 /// too: the frame centred on the mesh (where `kdtree build` and the tree cache build) is tried
 /// first, then the world's own frame (a tree built on the mesh as read). Checked in another frame

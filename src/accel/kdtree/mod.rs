@@ -38,13 +38,13 @@ pub use text::TreeError;
 pub use traverse::{BundleCounts, KdAccel};
 
 /// Deepest tree the builders produce (the SAH builder also stops at `8 + 1.3·log2 N`, as pbrt).
-pub const MAX_BUILD_DEPTH: usize = 40;
+pub(crate) const MAX_BUILD_DEPTH: usize = 40;
 /// Deepest tree accepted from a file (traversal's fixed stack holds one entry per level).
-pub const MAX_DEPTH: usize = 63;
+pub(crate) const MAX_DEPTH: usize = 63;
 /// SAH cost of one traversal step.
-pub const COST_TRAVERSAL: f32 = 1.0;
+pub(crate) const COST_TRAVERSAL: f32 = 1.0;
 /// SAH cost of one ray/triangle test.
-pub const COST_INTERSECT: f32 = 1.5;
+pub(crate) const COST_INTERSECT: f32 = 1.5;
 
 /// How to build a tree.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -58,7 +58,7 @@ pub enum BuildMethod {
 
 /// Everything that decides what [`KdTree::build`] makes with `method`, as text: part of the tree
 /// cache's key ([`crate::accel::cache::CacheKey`]), so changing a builder constant invalidates entries.
-pub fn builder_settings(method: BuildMethod) -> String {
+pub(crate) fn builder_settings(method: BuildMethod) -> String {
     match method {
         BuildMethod::Midpoint => format!("midpoint v1 depth {MAX_BUILD_DEPTH}"),
         BuildMethod::Sah => format!(
@@ -178,7 +178,7 @@ impl KdTree {
     }
 
     /// Triangle indices of the leaf `node` (empty for inner nodes).
-    pub fn leaf_triangles(&self, node: usize) -> &[u32] {
+    pub(crate) fn leaf_triangles(&self, node: usize) -> &[u32] {
         let n = self.nodes[node];
         if !n.is_leaf() {
             return &[];

@@ -9,7 +9,7 @@
 use bytemuck::{Pod, Zeroable};
 
 /// Largest child index or leaf triangle count that fits in the packed 30 bits.
-pub const MAX_PACKED: u32 = (1 << 30) - 1;
+pub(crate) const MAX_PACKED: u32 = (1 << 30) - 1;
 
 /// One kD-tree node (8 bytes, `Pod`).
 #[repr(C)]

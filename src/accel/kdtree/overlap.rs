@@ -10,7 +10,7 @@ pub type Aabb = ([f32; 3], [f32; 3]);
 
 /// Separating-axis triangle/box overlap test (13 axes), evaluated in `f64` on the `f32` inputs.
 /// Touching counts as overlap.
-pub fn tri_box_overlap(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
+pub(crate) fn tri_box_overlap(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
     sat(tri, bx, false)
 }
 
@@ -21,7 +21,7 @@ pub fn tri_box_overlap(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
 /// This is the builders' contract (checked by `validate()`): a triangle must be listed in every
 /// leaf it meets with positive area, except that a triangle lying in a split plane need only be
 /// listed on one side of it.
-pub fn tri_box_overlap_area(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
+pub(crate) fn tri_box_overlap_area(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
     let mut b = *bx;
     if let Some(a) = planar_axis(tri) {
         let c = tri[0][a];
@@ -36,7 +36,7 @@ pub fn tri_box_overlap_area(tri: &[[f32; 3]; 3], bx: &Aabb) -> bool {
 }
 
 /// The axis the triangle lies flat in (all three vertices share that coordinate), if any.
-pub fn planar_axis(tri: &[[f32; 3]; 3]) -> Option<usize> {
+pub(crate) fn planar_axis(tri: &[[f32; 3]; 3]) -> Option<usize> {
     (0..3).find(|&a| tri[0][a] == tri[1][a] && tri[1][a] == tri[2][a])
 }
 
@@ -88,7 +88,7 @@ fn sat(tri: &[[f32; 3]; 3], bx: &Aabb, open: bool) -> bool {
 /// Clips triangle `tri` to the closed box `bx` (Sutherland–Hodgman in `f64`) and returns the
 /// bounds of the clipped polygon, rounded outward to `f32` and clamped to the box, or `None`
 /// when nothing of the triangle lies in the box.
-pub fn clip_bounds(tri: &[[f32; 3]; 3], bx: &Aabb) -> Option<Aabb> {
+pub(crate) fn clip_bounds(tri: &[[f32; 3]; 3], bx: &Aabb) -> Option<Aabb> {
     let mut poly = [[0.0f64; 3]; 12];
     let mut n = 3;
     for (i, p) in tri.iter().enumerate() {

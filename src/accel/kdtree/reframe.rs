@@ -17,7 +17,7 @@ impl KdTree {
     /// [`KdTree::reframed`] in place (no copy of the node or triangle arrays; the nodes are moved
     /// in parallel). Into its own frame a tree stays as it is (through world coordinates and back
     /// a coordinate could round).
-    pub fn into_reframed(mut self, from: &RenderFrame, to: &RenderFrame) -> KdTree {
+    pub(crate) fn into_reframed(mut self, from: &RenderFrame, to: &RenderFrame) -> KdTree {
         if from == to {
             return self;
         }

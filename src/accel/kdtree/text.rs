@@ -130,7 +130,7 @@ pub enum TreeError {
         /// The depth limit.
         max: usize,
     },
-    /// The tree does not fit its mesh ([`KdTree::validate_file`]): a leaf misses a triangle
+    /// The tree does not fit its mesh (`KdTree::validate_file`): a leaf misses a triangle
     /// that overlaps it, a split lies outside its node's box, the triangle count differs.
     #[error("{}: invalid tree: {message}", place(path, *line))]
     Invalid {
@@ -178,7 +178,7 @@ impl KdTree {
     /// coordinates; each box coordinate and split is parsed in f64 and moved into the frame
     /// (`x − eye`, rounded once to f32), as the mesh's vertices are, so the tree and the mesh
     /// stay consistent (both roundings are monotonic).
-    pub fn read_text_in(
+    pub(crate) fn read_text_in(
         mut reader: impl BufRead,
         source: &Path,
         triangle_count: usize,
@@ -337,13 +337,8 @@ impl KdTree {
         })
     }
 
-    /// Opens and reads a tree file (see [`KdTree::read_text`]).
-    pub fn load_text(path: &Path, triangle_count: usize) -> Result<KdTree, TreeError> {
-        KdTree::load_text_in(path, triangle_count, &RenderFrame::default())
-    }
-
     /// Opens and reads a tree file into the render frame `frame` (see [`KdTree::read_text_in`]).
-    pub fn load_text_in(
+    pub(crate) fn load_text_in(
         path: &Path,
         triangle_count: usize,
         frame: &RenderFrame,
@@ -374,7 +369,7 @@ impl KdTree {
     }
 
     /// [`KdTree::write_text`] for a tree in the render frame `frame`: writes world coordinates
-    /// (`x + eye` in f64), which [`KdTree::read_text_in`] with the same frame reads back exactly.
+    /// (`x + eye` in f64), which `KdTree::read_text_in` with the same frame reads back exactly.
     pub fn write_text_in(&self, w: impl Write, frame: &RenderFrame) -> std::io::Result<()> {
         let world = |axis: usize, x: f32| WorldCoordinate::new(frame, axis, x);
         let mut w = std::io::BufWriter::new(w);

@@ -50,7 +50,7 @@ impl KdTree {
 
     /// [`KdTree::validate`] for the tree read from the file `path`: the error is
     /// [`TreeError::Invalid`], naming the file and the line of the node at fault.
-    pub fn validate_file(&self, mesh: &TriangleMesh, path: &Path) -> Result<(), TreeError> {
+    pub(crate) fn validate_file(&self, mesh: &TriangleMesh, path: &Path) -> Result<(), TreeError> {
         self.validate_nodes(mesh).map_err(|e| TreeError::Invalid {
             path: path.to_path_buf(),
             line: self.line_of(e.node),

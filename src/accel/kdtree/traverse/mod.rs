@@ -124,11 +124,6 @@ impl KdAccel {
         &self.tree
     }
 
-    /// Gives the tree back.
-    pub fn into_tree(self) -> KdTree {
-        self.tree
-    }
-
     /// Closest hit with `0 < t < t_max` (strict), `t` in units of `dir`'s length (`dir` need not
     /// be normalised). Equal `t` resolves to the lowest triangle index, exactly as the
     /// brute-force reference [`crate::geometry::triangle::intersect_all_closest`] does, with
@@ -146,7 +141,7 @@ impl KdAccel {
     }
 
     /// [`KdAccel::intersect_closest`] with a chosen triangle test (for the error report).
-    pub fn intersect_closest_with(
+    pub(crate) fn intersect_closest_with(
         &self,
         origin: Vec3,
         dir: Vec3,
@@ -157,7 +152,7 @@ impl KdAccel {
     }
 
     /// [`KdAccel::intersect_occluded`] with a chosen triangle test (for the error report).
-    pub fn intersect_occluded_with(
+    pub(crate) fn intersect_occluded_with(
         &self,
         origin: Vec3,
         dir: Vec3,
