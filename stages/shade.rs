@@ -414,7 +414,7 @@ impl HitLanes {
         if !meshes {
             return x;
         }
-        let shading = load3(&hits.shading[rows]);
+        let shading: [[f32; LANES]; 3] = load3(&hits.shading[rows]);
         for l in 0..LANES {
             let same = (shading[0][l] == x.n[0][l])
                 & (shading[1][l] == x.n[1][l])
@@ -641,7 +641,7 @@ impl Kernel for ShadowRayKernel<'_, '_> {
         let light = &self.lights[0];
         for g in (start..end).step_by(LANES) {
             let rows = g..(g + LANES).min(end);
-            let spawn = load3(&self.hits.spawn[rows.clone()]);
+            let spawn: [[f32; LANES]; 3] = load3(&self.hits.spawn[rows.clone()]);
             let (dir, t) = shadow_rays8(&spawn, light);
             let values = &self.radiance[rows.start - start..rows.end - start];
             if rows.len() == LANES && values.iter().all(|&v| v != Vec3::ZERO) {
