@@ -21,7 +21,14 @@ pub type Lanes3 = [[f32; LANES]; 3];
 #[inline(always)]
 pub fn load3<const N: usize>(rows: &[Vec3]) -> [[f32; N]; 3] {
     let mut x = [[0.0; N]; 3];
-    if let Ok(full) = <&[Vec3; N]>::try_from(rows) {
+    if N == 8
+        && let Ok(full) = <&[Vec3; 8]>::try_from(rows)
+    {
+        let lanes = crate::simd::deinterleave3x8(bytemuck::cast_ref(full));
+        for k in 0..3 {
+            x[k].copy_from_slice(&lanes[k][..N.min(8)]);
+        }
+    } else if let Ok(full) = <&[Vec3; N]>::try_from(rows) {
         let flat: &[f32] = bytemuck::cast_slice(full);
         let flat = &flat[..3 * N];
         for l in 0..N {
@@ -42,7 +49,12 @@ pub fn load3<const N: usize>(rows: &[Vec3]) -> [[f32; N]; 3] {
 /// Writes the first `rows.len()` lanes (at most `N`, [`LANES`] by default) to `rows`.
 #[inline(always)]
 pub fn store3<const N: usize>(x: &[[f32; N]; 3], rows: &mut [Vec3]) {
-    if let Ok(full) = <&mut [Vec3; N]>::try_from(&mut *rows) {
+    if N == 8
+        && let Ok(full) = <&mut [Vec3; 8]>::try_from(&mut *rows)
+    {
+        let lanes: [[f32; 8]; 3] = std::array::from_fn(|k| std::array::from_fn(|l| x[k][l]));
+        crate::simd::interleave3x8(&lanes, bytemuck::cast_mut(full));
+    } else if let Ok(full) = <&mut [Vec3; N]>::try_from(&mut *rows) {
         let flat: &mut [f32] = bytemuck::cast_slice_mut(full);
         let flat = &mut flat[..3 * N];
         for l in 0..N {
