@@ -93,14 +93,16 @@ pub fn spawn_reflection_rays(
         let (spawn, shading) = (&hits.spawn[rows.clone()], &hits.shading[rows.clone()]);
         let (direction, weight) = (&hits.direction[rows.clone()], &hits.weight[rows.clone()]);
         let (slot, material) = (&hits.slot[rows.clone()], &material[rows]);
+        let k = out.slot.len();
+        let (o_origin, o_direction) = (&mut out.origin[..k], &mut out.direction[..k]);
+        let (o_t_max, o_weight) = (&mut out.t_max[..k], &mut out.weight[..k]);
         let mut j = 0;
         for i in 0..material.len() {
             let a = alpha[material[i] as usize];
             if a > 0.0 {
                 // `reflection_ray` of row i.
-                (out.origin[j], out.direction[j]) = (spawn[i], mirror(direction[i], shading[i]));
-                (out.t_max[j], out.weight[j], out.slot[j]) =
-                    (f32::INFINITY, weight[i] * a, slot[i]);
+                (o_origin[j], o_direction[j]) = (spawn[i], mirror(direction[i], shading[i]));
+                (o_t_max[j], o_weight[j], out.slot[j]) = (f32::INFINITY, weight[i] * a, slot[i]);
                 j += 1;
             }
         }
