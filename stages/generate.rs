@@ -56,8 +56,27 @@ pub fn camera_ray(
     }
 }
 
-/// Rays per lane group of the kernel.
-const LANES: usize = 8;
+/// Rays per lane group of the kernel: 16, one AVX-512 register of `f32`s (two AVX2 ones).
+const LANES: usize = 16;
+
+/// `1/d` when `x / d` and `x · (1/d)` round alike for every `x`: `d` a power of two whose
+/// reciprocal is a normal float (both then scale `x` by an exact power of two and round once).
+/// Scene A's 512-pixel image and 8 × 8 strata divide by such: a multiply instead of a division
+/// per lane, the same bits.
+fn exact_reciprocal(d: f32) -> Option<f32> {
+    let r = 1.0 / d;
+    let power_of_two = |v: f32| v.is_normal() && v.to_bits() & 0x007f_ffff == 0;
+    (power_of_two(d) && power_of_two(r)).then_some(r)
+}
+
+/// `x / d` lane by lane, as a multiply by `rcp` when it is `d`'s [`exact_reciprocal`].
+#[inline(always)]
+fn divide(x: [f32; LANES], d: f32, rcp: Option<f32>) -> [f32; LANES] {
+    match rcp {
+        Some(r) => x.map(|v| v * r),
+        None => x.map(|v| v / d),
+    }
+}
 
 /// The generate kernel over one chunk of slots `first..first + direction.len()`: per group of 8
 /// slots, the pixel and stratum of each (stepped, never divided, from the chunk's first slot),
@@ -91,6 +110,8 @@ impl Kernel for CameraKernel<'_> {
         let (tx, ty) = (self.stratum_x, self.stratum_y);
         let (rl, tb) = (cam.r - cam.l, cam.t - cam.b);
         let (nxf, nyf) = (nx as f32, ny as f32);
+        let (rcp_k, rcp_m) = (exact_reciprocal(kf), exact_reciprocal(mf));
+        let (rcp_nx, rcp_ny) = (exact_reciprocal(nxf), exact_reciprocal(nyf));
         let (u, v, w) = (cam.u, cam.v, cam.w);
         let dw = cam.d * w;
         let iota: [u32; LANES] = std::array::from_fn(|l| l as u32);
@@ -142,17 +163,24 @@ impl Kernel for CameraKernel<'_> {
             // scalar: a `vsqrtss` and two `vdivss` per ray).
             let (mut dx, mut dy) = ([0.5f32; LANES], [0.5f32; LANES]);
             if jitter {
+                let (mut sx, mut sy) = ([0.0f32; LANES], [0.0f32; LANES]);
                 for l in 0..LANES {
                     let jx = uniform(image.seed, lp[l], 2 * ls[l]);
                     let jy = uniform(image.seed, lp[l], 2 * ls[l] + 1);
-                    (dx[l], dy[l]) = ((lsx[l] + jx) / kf, (lsy[l] + jy) / mf);
+                    (sx[l], sy[l]) = (lsx[l] + jx, lsy[l] + jy);
                 }
+                (dx, dy) = (divide(sx, kf, rcp_k), divide(sy, mf, rcp_m));
             }
+            let mut xs = [0.0f32; LANES];
+            let mut ys = [0.0f32; LANES];
+            for l in 0..LANES {
+                (xs[l], ys[l]) = (rl * (li[l] + dx[l]), tb * (lj[l] + dy[l]));
+            }
+            let (xs, ys) = (divide(xs, nxf, rcp_nx), divide(ys, nyf, rcp_ny));
             let mut d = [[0.0f32; LANES]; 3];
             for l in 0..LANES {
-                let (x, y) = (li[l] + dx[l], lj[l] + dy[l]);
-                let us = cam.l + rl * x / nxf;
-                let vs = cam.t - tb * y / nyf;
+                let us = cam.l + xs[l];
+                let vs = cam.t - ys[l];
                 let px = us * u.x + vs * v.x - dw.x;
                 let py = us * u.y + vs * v.y - dw.y;
                 let pz = us * u.z + vs * v.z - dw.z;
@@ -222,18 +250,30 @@ fn generate_at(
             dispatch(level, kernel);
         });
     // Constant columns, overwritten in place.
-    fill_splat(out.origin, 0.0); // the eye: the render frame's origin
-    out.t_max.fill(f32::INFINITY);
-    fill_splat(out.weight, 1.0);
-    for (i, s) in out.slot.iter_mut().enumerate() {
-        *s = SampleSlot(i as u32);
+    fill_f32(bytemuck::cast_slice_mut(out.origin), 0.0); // the eye: the render frame's origin
+    fill_f32(out.t_max, f32::INFINITY);
+    fill_f32(bytemuck::cast_slice_mut(out.weight), 1.0);
+    let slots: &mut [u32] = bytemuck::cast_slice_mut(out.slot);
+    let mut groups = slots.chunks_exact_mut(16);
+    let iota: [u32; 16] = std::array::from_fn(|l| l as u32);
+    let mut first = 0;
+    for g in &mut groups {
+        g.copy_from_slice(&iota.map(|l| first + l));
+        first += 16;
+    }
+    for (l, s) in groups.into_remainder().iter_mut().enumerate() {
+        *s = first + l as u32;
     }
 }
 
-/// Sets every row of `column` to `Vec3::splat(value)`, written as a run of plain `f32`s: vector
-/// stores, where a fill of `Vec3` writes the 12-byte rows one by one.
-fn fill_splat(column: &mut [Vec3], value: f32) {
-    bytemuck::cast_slice_mut::<Vec3, f32>(column).fill(value);
+/// Sets every element of `column` to `value` in blocks of 16 (vector stores; a plain `fill`
+/// of a float stayed one scalar store per element).
+fn fill_f32(column: &mut [f32], value: f32) {
+    let mut blocks = column.chunks_exact_mut(16);
+    for b in &mut blocks {
+        b.copy_from_slice(&[value; 16]);
+    }
+    blocks.into_remainder().fill(value);
 }
 
 #[cfg(test)]
@@ -270,6 +310,22 @@ mod tests {
                 SampleSlot(7)
             )
         );
+    }
+
+    #[test]
+    fn exact_reciprocals_divide_like_the_division() {
+        assert_eq!(exact_reciprocal(3.0), None);
+        assert_eq!(
+            exact_reciprocal(f32::from_bits(254 << 23)),
+            None,
+            "1/d is subnormal"
+        );
+        for d in [1.0f32, 8.0, 512.0, 0.25] {
+            let r = exact_reciprocal(d).unwrap();
+            for x in [1.0f32, 0.7, 511.99997, 1e-38, 3.0e-39, f32::MAX] {
+                assert_eq!((x * r).to_bits(), (x / d).to_bits(), "{x} / {d}");
+            }
+        }
     }
 
     #[test]

@@ -121,12 +121,20 @@ pub fn compact_hits(
     compact(out, counts, |c, out| {
         let first = c * MIN_CHUNK;
         let rows = first..(first + MIN_CHUNK).min(prim.len());
+        // The chunk's rows, cut once (no bounds check per row below).
+        let (origin, direction) = (&rays.origin[rows.clone()], &rays.direction[rows.clone()]);
+        let (weight, slot) = (&rays.weight[rows.clone()], &rays.slot[rows.clone()]);
+        let (t, prim) = (&hits.t[rows.clone()], &prim[rows]);
+        let n = out.prim.len();
+        let (o_origin, o_direction) = (&mut out.origin[..n], &mut out.direction[..n]);
+        let (o_weight, o_slot) = (&mut out.weight[..n], &mut out.slot[..n]);
+        let o_t = &mut out.t[..n];
         let mut j = 0;
-        for i in rows {
+        for i in 0..prim.len() {
             if prim[i].is_hit() {
-                (out.origin[j], out.direction[j]) = (rays.origin[i], rays.direction[i]);
-                (out.weight[j], out.slot[j]) = (rays.weight[i], rays.slot[i]);
-                (out.t[j], out.prim[j]) = (hits.t[i], prim[i]);
+                (o_origin[j], o_direction[j]) = (origin[i], direction[i]);
+                (o_weight[j], o_slot[j]) = (weight[i], slot[i]);
+                (o_t[j], out.prim[j]) = (t[i], prim[i]);
                 j += 1;
             }
         }

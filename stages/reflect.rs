@@ -46,11 +46,17 @@ pub fn reflection_ray(world: &World, hits: &ReflectHits<'_>, i: usize) -> RayIte
     let alpha = world.materials()[hits.material[i] as usize].alpha;
     RayItem {
         origin: hits.spawn[i],
-        direction: d - 2.0 * d.dot(n) * n,
+        direction: mirror(d, n),
         t_max: f32::INFINITY,
         weight: hits.weight[i] * alpha,
         slot: hits.slot[i],
     }
+}
+
+/// `d` reflected about the unit normal `n`: `d − 2(d·n)n`.
+#[inline(always)]
+pub fn mirror(d: Vec3, n: Vec3) -> Vec3 {
+    d - 2.0 * d.dot(n) * n
 }
 
 /// Spawns the next depth's rays into `next` (overwritten), in slot order: a two-pass compaction
@@ -62,23 +68,41 @@ pub fn spawn_reflection_rays(
     counts: &mut Vec<usize>,
     next: Resize<NextRays<'_>>,
 ) {
-    let materials = world.materials();
+    // Each material's α, 0 where it does not reflect: one look-up per row, no `Material` read.
+    let alpha: Vec<f32> = world
+        .materials()
+        .iter()
+        .map(|m| if m.reflects() { m.alpha } else { 0.0 })
+        .collect();
+    let alpha = alpha.as_slice();
     let material = hits.material;
-    let reflects = |i: usize| materials[material[i] as usize].reflects();
+    let n = material.len();
     count_chunks(
-        material.len(),
+        n,
         MIN_CHUNK,
-        |r| r.filter(|&i| reflects(i)).count(),
+        |r| {
+            material[r]
+                .iter()
+                .filter(|&&m| alpha[m as usize] > 0.0)
+                .count()
+        },
         counts,
     );
     compact(next, counts, |c, out| {
-        let first = c * MIN_CHUNK;
+        let rows = c * MIN_CHUNK..(c * MIN_CHUNK + MIN_CHUNK).min(n);
+        let (spawn, shading) = (&hits.spawn[rows.clone()], &hits.shading[rows.clone()]);
+        let (direction, weight) = (&hits.direction[rows.clone()], &hits.weight[rows.clone()]);
+        let (slot, material) = (&hits.slot[rows.clone()], &material[rows]);
+        let k = out.slot.len();
+        let (o_origin, o_direction) = (&mut out.origin[..k], &mut out.direction[..k]);
+        let (o_t_max, o_weight) = (&mut out.t_max[..k], &mut out.weight[..k]);
         let mut j = 0;
-        for i in first..(first + MIN_CHUNK).min(material.len()) {
-            if reflects(i) {
-                let r = reflection_ray(world, &hits, i);
-                (out.origin[j], out.direction[j], out.t_max[j]) = (r.origin, r.direction, r.t_max);
-                (out.weight[j], out.slot[j]) = (r.weight, r.slot);
+        for i in 0..material.len() {
+            let a = alpha[material[i] as usize];
+            if a > 0.0 {
+                // `reflection_ray` of row i.
+                (o_origin[j], o_direction[j]) = (spawn[i], mirror(direction[i], shading[i]));
+                (o_t_max[j], o_weight[j], out.slot[j]) = (f32::INFINITY, weight[i] * a, slot[i]);
                 j += 1;
             }
         }

@@ -294,12 +294,25 @@ pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) 
             );
             if settings.shadows {
                 // Ambient only (the lights come through shadow rays): `shade_hit`'s operations
-                // on the row's material, without building its `Surface`.
+                // on the row's material, without building its `Surface`: `(1 − α)` and
+                // `ka·Ia` per material (a small table), then `(weight·(1 − α))·(ka·Ia)`.
+                let mut terms = [(0.0f32, Vec3::ZERO); 8];
                 let materials = world.materials();
+                let small = materials.len() <= terms.len();
+                if small {
+                    for (t, m) in terms.iter_mut().zip(materials) {
+                        *t = (1.0 - m.alpha, m.ka * settings.ambient);
+                    }
+                }
+                let weight = &weight[r.clone()];
                 for (k, e) in emitted.iter_mut().enumerate() {
-                    let m = &materials[material[k] as usize];
-                    let i = r.start + k;
-                    *e = (weight[i] * (1.0 - m.alpha)) * (m.ka * settings.ambient);
+                    let (keep, ambient) = if small {
+                        terms[material[k] as usize]
+                    } else {
+                        let m = &materials[material[k] as usize];
+                        (1.0 - m.alpha, m.ka * settings.ambient)
+                    };
+                    *e = (weight[k] * keep) * ambient;
                 }
                 return;
             }
@@ -414,7 +427,7 @@ impl HitLanes {
         if !meshes {
             return x;
         }
-        let shading = load3(&hits.shading[rows]);
+        let shading: [[f32; LANES]; 3] = load3(&hits.shading[rows]);
         for l in 0..LANES {
             let same = (shading[0][l] == x.n[0][l])
                 & (shading[1][l] == x.n[1][l])
@@ -641,7 +654,7 @@ impl Kernel for ShadowRayKernel<'_, '_> {
         let light = &self.lights[0];
         for g in (start..end).step_by(LANES) {
             let rows = g..(g + LANES).min(end);
-            let spawn = load3(&self.hits.spawn[rows.clone()]);
+            let spawn: [[f32; LANES]; 3] = load3(&self.hits.spawn[rows.clone()]);
             let (dir, t) = shadow_rays8(&spawn, light);
             let values = &self.radiance[rows.start - start..rows.end - start];
             if rows.len() == LANES && values.iter().all(|&v| v != Vec3::ZERO) {

@@ -17,19 +17,27 @@ pub const LANES: usize = 8;
 /// x, y and z of up to [`LANES`] rows, lane `l` holding row `l`.
 pub type Lanes3 = [[f32; LANES]; 3];
 
-/// The rows (at most [`LANES`]) in lanes; lanes past `rows.len()` are zero.
+/// The rows (at most `N`, [`LANES`] by default) in lanes; lanes past `rows.len()` are zero.
 #[inline(always)]
-pub fn load3(rows: &[Vec3]) -> Lanes3 {
-    let mut x = [[0.0; LANES]; 3];
-    if let Ok(full) = <&[Vec3; LANES]>::try_from(rows) {
-        let flat: &[f32; 3 * LANES] = bytemuck::cast_ref(full);
-        for l in 0..LANES {
+pub fn load3<const N: usize>(rows: &[Vec3]) -> [[f32; N]; 3] {
+    let mut x = [[0.0; N]; 3];
+    if N == 8
+        && let Ok(full) = <&[Vec3; 8]>::try_from(rows)
+    {
+        let lanes = crate::simd::deinterleave3x8(bytemuck::cast_ref(full));
+        for k in 0..3 {
+            x[k].copy_from_slice(&lanes[k][..N.min(8)]);
+        }
+    } else if let Ok(full) = <&[Vec3; N]>::try_from(rows) {
+        let flat: &[f32] = bytemuck::cast_slice(full);
+        let flat = &flat[..3 * N];
+        for l in 0..N {
             for k in 0..3 {
                 x[k][l] = flat[3 * l + k];
             }
         }
     } else {
-        for (l, v) in rows.iter().take(LANES).enumerate() {
+        for (l, v) in rows.iter().take(N).enumerate() {
             for k in 0..3 {
                 x[k][l] = v[k];
             }
@@ -38,18 +46,24 @@ pub fn load3(rows: &[Vec3]) -> Lanes3 {
     x
 }
 
-/// Writes the first `rows.len()` lanes (at most [`LANES`]) to `rows`.
+/// Writes the first `rows.len()` lanes (at most `N`, [`LANES`] by default) to `rows`.
 #[inline(always)]
-pub fn store3(x: &Lanes3, rows: &mut [Vec3]) {
-    if let Ok(full) = <&mut [Vec3; LANES]>::try_from(&mut *rows) {
-        let flat: &mut [f32; 3 * LANES] = bytemuck::cast_mut(full);
-        for l in 0..LANES {
+pub fn store3<const N: usize>(x: &[[f32; N]; 3], rows: &mut [Vec3]) {
+    if N == 8
+        && let Ok(full) = <&mut [Vec3; 8]>::try_from(&mut *rows)
+    {
+        let lanes: [[f32; 8]; 3] = std::array::from_fn(|k| std::array::from_fn(|l| x[k][l]));
+        crate::simd::interleave3x8(&lanes, bytemuck::cast_mut(full));
+    } else if let Ok(full) = <&mut [Vec3; N]>::try_from(&mut *rows) {
+        let flat: &mut [f32] = bytemuck::cast_slice_mut(full);
+        let flat = &mut flat[..3 * N];
+        for l in 0..N {
             for k in 0..3 {
                 flat[3 * l + k] = x[k][l];
             }
         }
     } else {
-        for (l, v) in rows.iter_mut().take(LANES).enumerate() {
+        for (l, v) in rows.iter_mut().take(N).enumerate() {
             *v = Vec3::new(x[0][l], x[1][l], x[2][l]);
         }
     }
@@ -80,7 +94,7 @@ mod tests {
             let rows: Vec<Vec3> = (0..n)
                 .map(|i| Vec3::new(i as f32, -(i as f32) - 0.5, 100.0 + i as f32))
                 .collect();
-            let x = load3(&rows);
+            let x: Lanes3 = load3(&rows);
             for l in 0..LANES {
                 let want = rows.get(l).copied().unwrap_or(Vec3::ZERO);
                 assert_eq!(
@@ -95,6 +109,20 @@ mod tests {
                 assert_eq!(l1[l], if l < n { l as u32 } else { 99 });
             }
             let mut back = vec![Vec3::splat(7.0); n];
+            store3(&x, &mut back);
+            assert_eq!(back, rows);
+        }
+        // 16 lanes, full and partial.
+        for n in [16, 11] {
+            let rows: Vec<Vec3> = (0..n)
+                .map(|i| Vec3::new(i as f32, 2.0, -(i as f32)))
+                .collect();
+            let x: [[f32; 16]; 3] = load3(&rows);
+            assert_eq!(
+                (x[0][n - 1], x[2][n - 1]),
+                ((n - 1) as f32, -((n - 1) as f32))
+            );
+            let mut back = vec![Vec3::ZERO; n];
             store3(&x, &mut back);
             assert_eq!(back, rows);
         }

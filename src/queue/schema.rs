@@ -73,8 +73,9 @@ pub trait Queue: Default {
         self.len() == 0
     }
 
-    /// Sets every column to `n` rows: rows past `n` are dropped, new rows are the columns'
-    /// defaults (a kernel that sizes a queue overwrites the rows it writes).
+    /// Sets every column to `n` rows: rows past `n` are dropped; new rows are the columns'
+    /// defaults where the queue never had them, else what they last held (a kernel that sizes a
+    /// queue overwrites the rows it writes).
     fn resize(&mut self, n: usize);
 
     /// Each column's length, in declaration order (always all equal: what tests check).
@@ -104,6 +105,11 @@ macro_rules! queue {
         #[derive(Clone, Debug, Default)]
         $vis struct $name {
             $( $field: ::std::vec::Vec<$ty>, )+
+            /// Rows in use: every column's first `rows_in_use` elements. The `Vec`s keep the
+            /// rows a queue once had (their high-water mark, all initialised), so a queue that
+            /// shrinks and grows again, as every wave's queues do, rewrites no row it does not
+            /// use.
+            rows_in_use: usize,
         }
 
         $(#[$imeta])*
@@ -134,7 +140,7 @@ macro_rules! queue {
             /// Number of rows.
             #[inline]
             pub fn len(&self) -> usize {
-                [$( self.$field.len() ),+][0]
+                self.rows_in_use
             }
 
             /// True when the queue holds no rows.
@@ -145,28 +151,40 @@ macro_rules! queue {
 
             /// Removes all rows, keeping the allocations.
             pub fn clear(&mut self) {
-                $( self.$field.clear(); )+
+                self.rows_in_use = 0;
             }
 
-            /// Sets every column to `n` rows (new rows are the columns' defaults).
+            /// Sets every column to `n` rows. Rows beyond any length the queue had are the
+            /// columns' defaults; rows within it keep whatever they last held (a kernel that
+            /// sizes a queue overwrites the rows it writes; [`Self::reset`] for default rows).
             pub fn resize(&mut self, n: usize) {
-                $( self.$field.resize(n, ::std::default::Default::default()); )+
+                $( if self.$field.len() < n {
+                    self.$field.resize(n, ::std::default::Default::default());
+                } )+
+                self.rows_in_use = n;
             }
 
             /// Resets to `n` default rows, keeping the allocations.
             pub fn reset(&mut self, n: usize) {
-                self.clear();
                 self.resize(n);
+                $( self.$field[..n].fill(::std::default::Default::default()); )+
             }
 
             /// Appends one row.
             pub fn push(&mut self, row: $item) {
-                $( self.$field.push(row.$field); )+
+                let n = self.rows_in_use;
+                $( if self.$field.len() > n {
+                    self.$field[n] = row.$field;
+                } else {
+                    self.$field.push(row.$field);
+                } )+
+                self.rows_in_use = n + 1;
             }
 
             /// Row `i`.
             pub fn get(&self, i: usize) -> $item {
-                $item { $( $field: self.$field[i], )+ }
+                let c = self.columns();
+                $item { $( $field: c.$field[i], )+ }
             }
 
             /// Rows the queue holds without reallocating (the least of its columns').
@@ -177,20 +195,22 @@ macro_rules! queue {
             /// Every column as a slice.
             #[inline]
             pub fn columns(&self) -> Columns<'_> {
-                Columns { $( $field: &self.$field, )+ }
+                let n = self.rows_in_use;
+                Columns { $( $field: &self.$field[..n], )+ }
             }
 
             /// Every column as a mutable slice (what written column sets borrow).
             #[inline]
             pub fn columns_mut(&mut self) -> ColumnsMut<'_> {
-                ColumnsMut { $( $field: &mut self.$field, )+ }
+                let n = self.rows_in_use;
+                ColumnsMut { $( $field: &mut self.$field[..n], )+ }
             }
 
             $(
                 $(#[$fmeta])*
                 #[inline]
                 pub fn $field(&self) -> &[$ty] {
-                    &self.$field
+                    &self.$field[..self.rows_in_use]
                 }
             )+
         }
@@ -216,7 +236,8 @@ macro_rules! queue {
             }
 
             fn column_lens(&self) -> ::std::vec::Vec<usize> {
-                vec![$( self.$field.len() ),+]
+                let c = self.columns();
+                vec![$( c.$field.len() ),+]
             }
         }
     };
@@ -284,6 +305,31 @@ mod tests {
         q.reset(3);
         assert_eq!(q.n(), &[0, 0, 0]);
         one(&q);
+    }
+
+    #[test]
+    fn regrown_rows_are_not_rewritten_and_reset_rows_are_defaults() {
+        let mut q = Probe::default();
+        for i in 1..=4 {
+            q.push(row(i));
+        }
+        q.resize(1);
+        q.push(row(9));
+        q.resize(4);
+        assert_eq!(q.n(), &[1, 9, 3, 4], "resize keeps the rows it had");
+        q.clear();
+        q.resize(6);
+        assert_eq!(q.n(), &[1, 9, 3, 4, 0, 0], "new rows are defaults");
+        q.reset(5);
+        assert_eq!(q.n(), &[0; 5]);
+        assert_eq!(
+            q.get(4),
+            ProbeRow {
+                v: Vec3::ZERO,
+                flag: false,
+                n: 0
+            }
+        );
     }
 
     #[test]

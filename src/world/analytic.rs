@@ -20,7 +20,7 @@ use super::{SphereBvh, World};
 use crate::geometry::offset::gamma;
 use crate::geometry::plane;
 use crate::queue::PrimId;
-use crate::queue::lanes::{load1, load3, store3};
+use crate::queue::lanes::{Lanes3, load1, load3, store3};
 use crate::scene::OffsetMethod;
 use crate::simd::{Kernel, Level, dispatch};
 use crate::world::frame::{Plane, Sphere};
@@ -378,8 +378,8 @@ impl Surfaces<'_, '_> {
     fn group(&mut self, start: usize, end: usize) {
         let last = self.prims.len() - 1;
         let (g2, g4, g5) = (gamma(2), gamma(4), gamma(5));
-        let o = load3(&self.origins[start..end]);
-        let d = load3(&self.dirs[start..end]);
+        let o: Lanes3 = load3(&self.origins[start..end]);
+        let d: Lanes3 = load3(&self.dirs[start..end]);
         let t = load1(&self.t[start..end], 0.0);
         let mut c = [[0.0f32; LANES]; 3];
         let mut nn = [[0.0f32; LANES]; 3];
