@@ -9,12 +9,12 @@
 //! so each is within one ulp of the exact value (tests check two against the f64 reference).
 
 /// Largest exponent taken by square-and-multiply ([`integer_exponent`]).
-pub const MAX_INTEGER_EXPONENT: u32 = 65_536;
+pub(crate) const MAX_INTEGER_EXPONENT: u32 = 65_536;
 
 /// `Some(n)` when `p` is an integer `n` in `0..=MAX_INTEGER_EXPONENT` (the specular powers of
 /// scene files mostly are), else `None`.
 #[inline]
-pub fn integer_exponent(p: f32) -> Option<u32> {
+pub(crate) fn integer_exponent(p: f32) -> Option<u32> {
     // The range check first: `as u32` saturates, so only in-range values round-trip.
     let in_range = (0.0..=MAX_INTEGER_EXPONENT as f32).contains(&p);
     (in_range && (p as u32) as f32 == p).then_some(p as u32)
@@ -44,7 +44,7 @@ pub fn powi(x: f32, n: u32) -> f32 {
 /// `exp2(p · log2(x))` with this module's [`exp2`] and [`log2`] (`0^p = 0` for `p > 0`; a
 /// negative `x` gives NaN).
 #[inline]
-pub fn pow(x: f32, p: f32) -> f32 {
+pub(crate) fn pow(x: f32, p: f32) -> f32 {
     match integer_exponent(p) {
         Some(n) => powi(x, n),
         None => exp2(p * log2(x)),
@@ -59,7 +59,7 @@ const LN_2: f64 = std::f64::consts::LN_2;
 ///
 /// `x = 2^e · m` with `m` in `[√2/2, √2)`; `ln m = 2·atanh(s)` with `s = (m − 1)/(m + 1)`,
 /// `|s| ≤ 0.172`, summed in f64 to `s^15` (truncation below 1e-12 relative).
-pub fn log2(x: f32) -> f32 {
+pub(crate) fn log2(x: f32) -> f32 {
     if x.is_nan() || x < 0.0 {
         return f32::NAN;
     }
@@ -114,7 +114,7 @@ const EXP_TAYLOR: [f64; 12] = {
 ///
 /// `y = k + f` with `k` the nearest integer and `|f| ≤ 1/2`; `e^(f·ln 2)` summed in f64 to the
 /// 11th power (truncation below 1e-13 relative), scaled by `2^k` exactly, rounded once.
-pub fn exp2(y: f32) -> f32 {
+pub(crate) fn exp2(y: f32) -> f32 {
     if y.is_nan() {
         return y;
     }
@@ -147,7 +147,7 @@ pub fn tan(x: f64) -> f64 {
 /// eighth of a turn around a multiple of a quarter, the series are summed there to the 19th and
 /// 18th powers (truncation below 1e-19), and the quarter is applied by symmetry, so quarter
 /// turns are exact (`(1, 0)` at `x = 0.25`).
-pub fn sin_cos_turns(x: f64) -> (f64, f64) {
+pub(crate) fn sin_cos_turns(x: f64) -> (f64, f64) {
     let r = x - x.round(); // exact, in [-0.5, 0.5]
     let q = (r * 4.0).round(); // quarter turns, -2..=2
     let y = r - q * 0.25; // exact, in [-1/8, 1/8]

@@ -3,7 +3,7 @@
 
 /// A 32-bit integer hash with good avalanche (the "lowbias32" finaliser by C. Wellons).
 #[inline(always)]
-pub fn hash32(mut x: u32) -> u32 {
+pub(crate) fn hash32(mut x: u32) -> u32 {
     x ^= x >> 16;
     x = x.wrapping_mul(0x7feb_352d);
     x ^= x >> 15;
@@ -65,7 +65,7 @@ impl Strata {
 }
 
 /// Strata counts `(columns, rows)` for `n` samples.
-pub fn strata(n: u32) -> (u32, u32) {
+pub(crate) fn strata(n: u32) -> (u32, u32) {
     let k = (n as f64).sqrt().ceil() as u32;
     let k = k.max(1);
     (k, n.div_ceil(k))

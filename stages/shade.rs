@@ -262,7 +262,7 @@ pub struct ShadeScratch {
 }
 
 /// Shades every hit: fills its surface columns and `emitted` (one row per hit). Each chunk of
-/// rows goes through [`World::surface_batch`] (the SIMD surface kernel) and then the emitted
+/// rows goes through `World::surface_batch` (the SIMD surface kernel) and then the emitted
 /// radiance of its rows.
 pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
     let (prim, origin, direction, t, weight) =

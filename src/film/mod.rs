@@ -1,5 +1,5 @@
 //! The film: the box filter of a wave's samples ([`crate::queue::SampleBuffer`]) into pixels
-//! ([`resolve_wave`]), where resolved pixels go ([`PixelSink`]: an in-memory [`Film`], or an
+//! (`resolve_wave`), where resolved pixels go ([`PixelSink`]: an in-memory [`Film`], or an
 //! image file streamed as the render goes, [`crate::film::output::ImageStream`]), and 8-bit
 //! output.
 //!
@@ -71,7 +71,7 @@ impl PixelSink for Film {
 
 /// Averages each pixel's samples in `buffer` (slots as `wave` maps them) into `out`, one entry per
 /// pixel of the wave (overwritten): the box filter, in a fixed order.
-pub fn resolve_wave(buffer: &SampleBuffer, wave: &Wave, out: &mut Vec<Vec3>) {
+pub(crate) fn resolve_wave(buffer: &SampleBuffer, wave: &Wave, out: &mut Vec<Vec3>) {
     let samples = wave.samples.max(1) as usize;
     let inv = 1.0 / samples as f32;
     buffer.radiance()[..wave.len()]
@@ -81,7 +81,7 @@ pub fn resolve_wave(buffer: &SampleBuffer, wave: &Wave, out: &mut Vec<Vec3>) {
         .collect_into_vec(out);
 }
 
-/// Encodes one linear channel value to 8 bits through the [`GammaTable`] of `inv_gamma` (kept
+/// Encodes one linear channel value to 8 bits through the `GammaTable` of `inv_gamma` (kept
 /// per thread for the last gamma used): `round(255 · c^(1/γ))` with the project's own power
 /// (SPEC §2: the same bits on every CPU); NaN becomes 0.
 #[inline]
@@ -91,7 +91,7 @@ pub fn encode(c: f32, inv_gamma: f32) -> u8 {
 
 /// Encodes linear RGB `pixels` to 8-bit RGB in `out` (three bytes per pixel), as [`encode`]
 /// does each channel, looking the table up once for the whole slice.
-pub fn encode_rgb8(pixels: &[Vec3], inv_gamma: f32, out: &mut [u8]) {
+pub(crate) fn encode_rgb8(pixels: &[Vec3], inv_gamma: f32, out: &mut [u8]) {
     debug_assert_eq!(out.len(), 3 * pixels.len());
     with_table(inv_gamma, |t| {
         for (rgb, p) in out.chunks_exact_mut(3).zip(pixels) {
@@ -128,7 +128,7 @@ fn with_table<R>(inv_gamma: f32, f: impl FnOnce(&GammaTable) -> R) -> R {
 /// same as a search over all 255 thresholds (tested on every threshold's neighbours and on
 /// every bucket's edges).
 #[derive(Clone, Debug)]
-pub struct GammaTable {
+pub(crate) struct GammaTable {
     /// `1/γ`, the exponent the table encodes.
     pub inv_gamma: f32,
     /// `start[k − 1]`: the first value of level `k`, increasing.
@@ -144,7 +144,7 @@ const BUCKET_SHIFT: u32 = 16;
 
 /// `round(255 · c^inv_gamma)` for `c` in `[0, 1]`: the definition [`GammaTable`] tabulates.
 #[inline]
-pub fn gamma_level(c: f32, inv_gamma: f32) -> u8 {
+pub(crate) fn gamma_level(c: f32, inv_gamma: f32) -> u8 {
     (255.0 * arith::pow(c, inv_gamma)).round() as u8
 }
 

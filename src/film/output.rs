@@ -32,7 +32,7 @@ use crate::film::{Film, PixelSink, encode_rgb8};
 use crate::queue::PixelIndex;
 
 /// Bytes of compressed image data per PNG `IDAT` chunk (the stream writer's buffer).
-pub const PNG_IDAT_BYTES: usize = 1 << 20;
+pub(crate) const PNG_IDAT_BYTES: usize = 1 << 20;
 
 /// Encoded row batches the channel to the writer thread holds before the renderer waits: bounds
 /// the memory of rows not yet written to a few waves' worth.
@@ -615,7 +615,12 @@ impl Film {
 
     /// [`Film::save`] with metadata (PNG text chunks). A `.exr` path gets the linear radiance
     /// (f32 RGB, no gamma, no clamp; SPEC §13) through [`write_exr`].
-    pub fn save_with(&self, path: &Path, gamma: f32, meta: &ImageMeta) -> Result<(), OutputError> {
+    pub(crate) fn save_with(
+        &self,
+        path: &Path,
+        gamma: f32,
+        meta: &ImageMeta,
+    ) -> Result<(), OutputError> {
         if is_exr(path) {
             return write_exr(path, self);
         }

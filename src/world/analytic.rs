@@ -311,7 +311,7 @@ pub(crate) fn occluded(k: Occluded<'_>) {
     dispatch(Level::current(), k)
 }
 
-/// The output columns of [`World::surface_batch`], one row per hit (a chunk of the hit queue).
+/// The output columns of `World::surface_batch`, one row per hit (a chunk of the hit queue).
 pub struct SurfaceOut<'a> {
     /// [`Surface::point`](super::Surface::point) of each row.
     pub point: &'a mut [Vec3],
@@ -500,7 +500,7 @@ impl World {
     /// (both re-projections evaluated, the primitive's chosen by a select); triangle hits, and
     /// worlds with the fixed-epsilon offset, call [`World::surface`] row by row.
     /// Panics if the slices' lengths differ.
-    pub fn surface_batch(
+    pub(crate) fn surface_batch(
         &self,
         prim: &[PrimId],
         origins: &[Vec3],
