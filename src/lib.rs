@@ -25,7 +25,7 @@
 //! sample order and every sample is accumulated in schedule order.
 //!
 //! Memory is bounded by the wave: shadow rays are spawned and traced in passes of a fixed number
-//! of rows however many lights there are ([`stages::shade::ShadowPass`]), and each wave's resolved
+//! of rows however many lights there are ([`queue::pass::ShadowPass`]), and each wave's resolved
 //! pixels go to a [`film::PixelSink`] — an in-memory [`Film`], or an image file encoded row by
 //! row on a writer thread ([`film::output::ImageStream`]).
 //!

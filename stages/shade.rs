@@ -26,8 +26,9 @@ use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::compact;
 use crate::queue::lanes::{load3, store3};
+use crate::queue::pass::{MAX_SHADOW_ROWS, ShadowPass};
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, Resize, SampleSlot, Samples, ShadowQueue};
-use crate::scene::{Material, Scene};
+use crate::scene::{Material, ShadeSettings};
 use crate::simd::{Kernel, Level, dispatch};
 use crate::world::frame::{Emission, Light};
 use crate::world::{Surface, SurfaceOut, World};
@@ -96,55 +97,6 @@ crate::kernels! {
 crate::kernels! {
     /// The kernels of the stage's hit-mask variant, in order.
     pub const MASK_KERNELS = [shade_hit_mask(MaskHits), add_emitted(EmittedHits, Samples)];
-}
-
-/// What the shade kernel needs besides the world.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct ShadeSettings {
-    /// Ambient intensity `Ia`.
-    pub ambient: Vec3,
-    /// Defer the direct terms to shadow rays.
-    pub shadows: bool,
-    /// Evaluate the specular term at all (false when no material has `ks > 0`).
-    pub specular: bool,
-}
-
-impl ShadeSettings {
-    /// The settings a scene implies.
-    pub fn for_scene(scene: &Scene) -> ShadeSettings {
-        ShadeSettings {
-            ambient: scene.render.ambient,
-            shadows: scene.needs_shadows(),
-            specular: scene.needs_specular(),
-        }
-    }
-}
-
-/// Upper bound on a pass's rows: row indices of a pass are `u32` ([`RowIndex`](crate::queue::RowIndex)).
-pub const MAX_SHADOW_ROWS: usize = u32::MAX as usize;
-
-/// One shade → shadow pass of a depth: the shadow rays of hits `hits` (rows of the hit queue)
-/// toward lights `lights` (indices into the world's lights), at most `hits.len() × lights.len()`
-/// rows. The first pass of a depth also shades the surfaces and adds the emitted radiance.
-#[derive(Clone, Debug, Default, PartialEq, Eq)]
-pub struct ShadowPass {
-    /// Rows of the hit queue.
-    pub hits: Range<usize>,
-    /// Indices of the lights.
-    pub lights: Range<usize>,
-}
-
-impl ShadowPass {
-    /// True for the depth's first pass: the one that shades surfaces and emits.
-    pub fn is_first(&self) -> bool {
-        self.hits.start == 0 && self.lights.start == 0
-    }
-
-    /// Candidate shadow rays of the pass (`hits × lights`; the schedule's passes keep it within
-    /// their budget, so it never overflows).
-    pub fn rows(&self) -> usize {
-        self.hits.len() * self.lights.len()
-    }
 }
 
 /// `(Ld + Ls)·I·a` from one light at `p` with facing normal `n` and unit view vector `v`, and

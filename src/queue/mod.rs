@@ -21,6 +21,7 @@ pub mod columns;
 pub mod compact;
 pub mod hit;
 pub mod lanes;
+pub mod pass;
 pub mod ray;
 pub mod region;
 pub mod samples;

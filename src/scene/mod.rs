@@ -372,3 +372,26 @@ impl Scene {
             .map(|(_, m)| m)
     }
 }
+
+/// What the shade stage evaluates, as a scene implies it: the ambient intensity, and whether
+/// direct light goes through shadow rays and the specular term is evaluated at all.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ShadeSettings {
+    /// Ambient intensity `Ia`.
+    pub ambient: Vec3,
+    /// Defer the direct terms to shadow rays.
+    pub shadows: bool,
+    /// Evaluate the specular term at all (false when no material has `ks > 0`).
+    pub specular: bool,
+}
+
+impl ShadeSettings {
+    /// The settings a scene implies.
+    pub fn for_scene(scene: &Scene) -> ShadeSettings {
+        ShadeSettings {
+            ambient: scene.render.ambient,
+            shadows: scene.needs_shadows(),
+            specular: scene.needs_specular(),
+        }
+    }
+}

@@ -31,20 +31,21 @@ use std::time::Instant;
 use glam::Vec3;
 
 use crate::film::{Film, PixelSink, resolve_wave};
+use crate::queue::pass::{MAX_SHADOW_ROWS, ShadowPass};
 use crate::queue::region::Region;
 use crate::queue::wave::Wave;
 use crate::queue::{
     HitColumns, HitQueue, PixelIndex, RayQueue, SampleBuffer, Samples, ShadowQueue,
 };
-use crate::scene::{RenderMode, Scene};
+use crate::scene::{RenderMode, Scene, ShadeSettings};
 use crate::stages::generate::{CameraRays, generate_camera_rays};
 use crate::stages::intersect::{
     ClosestOut, ClosestRays, CompactHits, CompactOut, CompactRays, compact_hits, intersect_closest,
 };
 use crate::stages::reflect::{NextRays, ReflectHits, spawn_reflection_rays};
 use crate::stages::shade::{
-    EmittedHits, MAX_SHADOW_ROWS, MaskHits, ShadeHits, ShadeScratch, ShadeSettings, ShadedHits,
-    ShadowPass, ShadowRays, add_emitted, shade_hit_mask, shade_hits, spawn_shadow_rays,
+    EmittedHits, MaskHits, ShadeHits, ShadeScratch, ShadedHits, ShadowRays, add_emitted,
+    shade_hit_mask, shade_hits, spawn_shadow_rays,
 };
 use crate::stages::shadow::{LitRays, ShadowTrace, add_unoccluded, intersect_occluded};
 use crate::world::World;

@@ -35,7 +35,7 @@ pub struct StageRun {
     /// The bounce counter.
     pub depth: u32,
     /// False for the second and later shade → shadow passes of a depth (see
-    /// [`crate::stages::shade::ShadowPass`]); true for every other call.
+    /// [`crate::queue::pass::ShadowPass`]); true for every other call.
     pub first_pass: bool,
     /// Rays read (0 for `generate`, and for `shade` after a depth's first pass).
     pub rays_in: usize,

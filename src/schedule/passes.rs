@@ -2,7 +2,7 @@
 //! passes ([`shadow_passes`]), so the rows of one pass stay within a budget however many lights
 //! the scene has.
 
-use crate::stages::shade::{MAX_SHADOW_ROWS, ShadowPass};
+use crate::queue::pass::{MAX_SHADOW_ROWS, ShadowPass};
 
 /// The schedule's shade → shadow passes of a depth: the passes covering `hits` hits × `lights` lights with at most `budget` rows each (clamped
 /// to `1..=MAX_SHADOW_ROWS`), in an order that keeps every sample's additions as an unsplit
