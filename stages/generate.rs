@@ -32,7 +32,7 @@ crate::column_set! {
 
 crate::kernels! {
     /// The stage's kernels, in the order the schedule calls them.
-    pub const KERNELS = [generate_camera_rays(CameraRays)];
+    pub(crate) const KERNELS = [generate_camera_rays(CameraRays)];
 }
 
 /// The primary ray of slot `slot` in `wave`: the per-row body of the kernel. `strata` is
@@ -207,7 +207,7 @@ fn next_pixel((i, j, pixel): (&mut u32, &mut u32, &mut u32), region: Region, nx:
 /// Fills `out` with the wave's camera rays, one per sample, in slot order. The directions come
 /// from a SIMD kernel ([`crate::simd::dispatch`]) per chunk of slots, bit-identical to
 /// [`camera_ray`]; the other columns are constants and the slot number.
-pub fn generate_camera_rays(
+pub(crate) fn generate_camera_rays(
     camera: &Camera,
     image: &ImageSettings,
     wave: &Wave,

@@ -54,7 +54,7 @@ crate::column_set! {
 
 crate::kernels! {
     /// The stage's kernels, in the order the schedule calls them.
-    pub const KERNELS = [
+    pub(crate) const KERNELS = [
         intersect_closest(ClosestRays, ClosestOut),
         compact_hits(CompactRays, CompactHits, CompactOut),
     ];
@@ -105,7 +105,7 @@ pub fn intersect_closest(world: &World, rays: ClosestRays<'_>, out: Resize<Close
 /// Copies the rays that hit, with their hits, into `out` in slot order: a two-pass compaction
 /// over chunks of rows (count each chunk's hits, then each chunk writes its rows at its place).
 /// `counts` is scratch.
-pub fn compact_hits(
+pub(crate) fn compact_hits(
     rays: CompactRays<'_>,
     hits: CompactHits<'_>,
     counts: &mut Vec<usize>,

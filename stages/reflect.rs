@@ -35,7 +35,7 @@ crate::column_set! {
 
 crate::kernels! {
     /// The stage's kernels, in the order the schedule calls them.
-    pub const KERNELS = [spawn_reflection_rays(ReflectHits, NextRays)];
+    pub(crate) const KERNELS = [spawn_reflection_rays(ReflectHits, NextRays)];
 }
 
 /// The reflection of hit row `i` about its shading normal, `r = d − 2(d·n)n`, from the offset hit
@@ -62,7 +62,7 @@ pub fn mirror(d: Vec3, n: Vec3) -> Vec3 {
 /// Spawns the next depth's rays into `next` (overwritten), in slot order: a two-pass compaction
 /// over chunks of hits (count each chunk's reflective hits, then each chunk writes its rays at its
 /// place). `counts` is scratch.
-pub fn spawn_reflection_rays(
+pub(crate) fn spawn_reflection_rays(
     world: &World,
     hits: ReflectHits<'_>,
     counts: &mut Vec<usize>,

@@ -5,7 +5,7 @@
 //! material, spawn}`).
 //! Writes: [`ShadeHits`]' write columns — `HitQueue.{point, normal, material, spawn}` and
 //! `HitQueue.emitted` (the radiance added to the sample now, `(1 − α)·weight·(La [+ Ld + Ls when
-//! shadows are off])`), which [`add_emitted`] adds to the samples — and [`ShadowRays`]: one
+//! shadows are off])`), which `add_emitted` adds to the samples — and [`ShadowRays`]: one
 //! `ShadowQueue` row per hit and light that can light it, carrying `(1 − α)·weight·(Ld + Ls)`.
 //!
 //! Shadow rays are spawned one [`ShadowPass`] at a time — a block of hits × a block of lights of
@@ -87,7 +87,7 @@ crate::column_set! {
 
 crate::kernels! {
     /// The stage's kernels, in the order the schedule calls them.
-    pub const KERNELS = [
+    pub(crate) const KERNELS = [
         shade_hits(ShadeHits),
         add_emitted(EmittedHits, Samples),
         spawn_shadow_rays(ShadedHits, ShadowRays),
@@ -105,7 +105,7 @@ crate::kernels! {
 /// vector counts as `n·h = 0`, a point or spot light at `p` itself gives nothing, and so does an
 /// attenuated value that overflows.
 #[inline]
-pub fn direct_light(
+pub(crate) fn direct_light(
     light: &Light,
     m: &Material,
     specular: bool,
@@ -139,7 +139,7 @@ pub fn direct_light(
 /// The radiance one hit emits now: `(1 − α)·weight·(La [+ Σ (Ld + Ls) over every light when
 /// shadows are off])`. With shadows on, the lights' part comes through [`shadow_radiance`].
 #[inline]
-pub fn shade_hit(
+pub(crate) fn shade_hit(
     world: &World,
     settings: &ShadeSettings,
     (direction, weight): (Vec3, Vec3),
@@ -169,7 +169,7 @@ pub fn shade_hit(
 /// with the shading normal; zero — no shadow ray — where the light is behind the surface (the
 /// geometric `normal`'s side: blocked by the surface itself) or adds nothing.
 #[inline]
-pub fn shadow_radiance(
+pub(crate) fn shadow_radiance(
     light: &Light,
     m: &Material,
     specular: bool,
@@ -206,7 +206,7 @@ pub fn shadow_ray(origin: Vec3, light: &Light) -> (Vec3, f32) {
 /// Scratch for the shadow rays' variable output, reused across passes and waves; at most one
 /// pass's rows (a [`ShadowPass`]'s budget), whatever the number of lights.
 #[derive(Debug, Default)]
-pub struct ShadeScratch {
+pub(crate) struct ShadeScratch {
     /// `shadow_radiance` of every (hit, light) row of the pass, hit-major.
     radiance: Vec<Vec3>,
     /// Kept rows (non-zero radiance) of each chunk of hits.
@@ -216,7 +216,7 @@ pub struct ShadeScratch {
 /// Shades every hit: fills its surface columns and `emitted` (one row per hit). Each chunk of
 /// rows goes through `World::surface_batch` (the SIMD surface kernel) and then the emitted
 /// radiance of its rows.
-pub fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
+pub(crate) fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
     let (prim, origin, direction, t, weight) =
         (hits.prim, hits.origin, hits.direction, hits.t, hits.weight);
     (
@@ -639,7 +639,7 @@ impl Kernel for ShadowRayKernel<'_, '_> {
 /// chunks of hits, each a SIMD kernel ([`crate::simd::dispatch`]): the first evaluates every
 /// (hit, light) row's radiance in lanes of 8 hits and counts the non-zero ones, the second writes
 /// each chunk's rays at its place in the queue.
-pub fn spawn_shadow_rays(
+pub(crate) fn spawn_shadow_rays(
     world: &World,
     settings: &ShadeSettings,
     pass: &ShadowPass,
@@ -717,12 +717,12 @@ fn spawn_shadow_rays_at(
 }
 
 /// The hit/miss mask variant of shade: every hit emits its weight (white for primary rays).
-pub fn shade_hit_mask(hits: MaskHits<'_>) {
+pub(crate) fn shade_hit_mask(hits: MaskHits<'_>) {
     hits.emitted.copy_from_slice(hits.weight);
 }
 
 /// Adds each hit's `emitted` radiance to its sample (in slot order: deterministic).
-pub fn add_emitted(hits: EmittedHits<'_>, samples: Samples<'_>) {
+pub(crate) fn add_emitted(hits: EmittedHits<'_>, samples: Samples<'_>) {
     crate::queue::add_sorted(samples.radiance, hits.slot, hits.emitted, |_| true);
 }
 

@@ -29,7 +29,7 @@ crate::column_set! {
 
 crate::kernels! {
     /// The stage's kernels, in the order the schedule calls them.
-    pub const KERNELS = [
+    pub(crate) const KERNELS = [
         intersect_occluded(ShadowTrace),
         add_unoccluded(LitRays, Samples),
     ];
@@ -56,7 +56,7 @@ pub fn intersect_occluded(world: &World, rays: ShadowTrace<'_>) {
 }
 
 /// Adds the radiance of every unoccluded shadow ray to its sample; returns how many were lit.
-pub fn add_unoccluded(rays: LitRays<'_>, samples: Samples<'_>) -> usize {
+pub(crate) fn add_unoccluded(rays: LitRays<'_>, samples: Samples<'_>) -> usize {
     let occluded = rays.occluded;
     crate::queue::add_sorted(samples.radiance, rays.slot, rays.radiance, |i| !occluded[i]);
     occluded.iter().filter(|&&o| !o).count()

@@ -2,7 +2,7 @@
 //! (`compact_hits`, `spawn_reflection_rays`, `spawn_shadow_rays`).
 //!
 //! A two-pass compaction over chunks of input rows: first each chunk's kept rows are counted in
-//! parallel ([`count_chunks`], or a kernel's own first pass), then [`compact`] sizes the output
+//! parallel (`count_chunks`, or a kernel's own first pass), then [`compact`] sizes the output
 //! queue to the total and hands each chunk its consecutive piece of every output column, so every
 //! chunk writes its kept rows directly, in order, with no index list and no atomics. Rows keep
 //! their input order whatever the thread count (atomic appends would reorder them between runs).
@@ -13,7 +13,7 @@ use super::{ColumnSet, Resize};
 
 /// Counts, in parallel, the rows each chunk of `chunk` rows (of `n`) keeps, into `counts` (one
 /// entry per chunk, overwritten); returns the total. The first pass of [`compact`].
-pub fn count_chunks(
+pub(crate) fn count_chunks(
     n: usize,
     chunk: usize,
     count: impl Fn(std::ops::Range<usize>) -> usize + Sync,

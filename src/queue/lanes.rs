@@ -12,14 +12,14 @@
 use glam::Vec3;
 
 /// Rows per lane group.
-pub const LANES: usize = 8;
+pub(crate) const LANES: usize = 8;
 
 /// x, y and z of up to [`LANES`] rows, lane `l` holding row `l`.
-pub type Lanes3 = [[f32; LANES]; 3];
+pub(crate) type Lanes3 = [[f32; LANES]; 3];
 
 /// The rows (at most `N`, [`LANES`] by default) in lanes; lanes past `rows.len()` are zero.
 #[inline(always)]
-pub fn load3<const N: usize>(rows: &[Vec3]) -> [[f32; N]; 3] {
+pub(crate) fn load3<const N: usize>(rows: &[Vec3]) -> [[f32; N]; 3] {
     let mut x = [[0.0; N]; 3];
     if N == 8
         && let Ok(full) = <&[Vec3; 8]>::try_from(rows)
@@ -48,7 +48,7 @@ pub fn load3<const N: usize>(rows: &[Vec3]) -> [[f32; N]; 3] {
 
 /// Writes the first `rows.len()` lanes (at most `N`, [`LANES`] by default) to `rows`.
 #[inline(always)]
-pub fn store3<const N: usize>(x: &[[f32; N]; 3], rows: &mut [Vec3]) {
+pub(crate) fn store3<const N: usize>(x: &[[f32; N]; 3], rows: &mut [Vec3]) {
     if N == 8
         && let Ok(full) = <&mut [Vec3; 8]>::try_from(&mut *rows)
     {
@@ -72,7 +72,7 @@ pub fn store3<const N: usize>(x: &[[f32; N]; 3], rows: &mut [Vec3]) {
 /// Values of a scalar column (at most [`LANES`] rows) in lanes; lanes past `rows.len()` hold
 /// `fill`.
 #[inline(always)]
-pub fn load1<T: Copy>(rows: &[T], fill: T) -> [T; LANES] {
+pub(crate) fn load1<T: Copy>(rows: &[T], fill: T) -> [T; LANES] {
     if let Ok(full) = <&[T; LANES]>::try_from(rows) {
         *full
     } else {

@@ -65,7 +65,7 @@ impl RowIndex {
 }
 
 /// Minimum rows per rayon task in kernels: small enough to balance, large enough to amortise.
-pub const MIN_CHUNK: usize = 1024;
+pub(crate) const MIN_CHUNK: usize = 1024;
 
 /// Rays per call of the world's batch closest-hit query (the intersect stage's chunks): 8 rows of
 /// a 512-pixel-wide image at one sample per pixel, so the kD tree can regroup camera rays into

@@ -72,7 +72,7 @@ impl Region {
     }
 
     /// The part of the region inside the `width × height` image (possibly empty).
-    pub fn clipped(&self, width: u32, height: u32) -> Region {
+    pub(crate) fn clipped(&self, width: u32, height: u32) -> Region {
         let x1 = self.x1.min(width);
         let y1 = self.y1.min(height);
         Region {
@@ -207,7 +207,7 @@ pub enum TileSpec {
         /// The number of tiles.
         n: u32,
     },
-    /// `N`: the tile index comes from [`TILE_INDEX_VARIABLES`].
+    /// `N`: the tile index comes from `TILE_INDEX_VARIABLES`.
     FromEnvironment {
         /// The number of tiles.
         n: u32,
@@ -216,7 +216,7 @@ pub enum TileSpec {
 
 /// Where `--tile N` finds its tile index, in order: a Slurm job array task, then a Kubernetes
 /// Indexed Job's pod.
-pub const TILE_INDEX_VARIABLES: [&str; 2] = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"];
+pub(crate) const TILE_INDEX_VARIABLES: [&str; 2] = ["SLURM_ARRAY_TASK_ID", "JOB_COMPLETION_INDEX"];
 
 impl FromStr for TileSpec {
     type Err = RegionError;

@@ -55,7 +55,7 @@ impl Wave {
     /// The pixel (of the whole image) a slot belongs to and the slot's sample number within that
     /// pixel.
     #[inline]
-    pub fn pixel_of(&self, slot: SampleSlot) -> (PixelIndex, u32) {
+    pub(crate) fn pixel_of(&self, slot: SampleSlot) -> (PixelIndex, u32) {
         let local = self.first + slot.0 / self.samples;
         (
             self.region.pixel(local, self.image_width),

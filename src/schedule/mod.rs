@@ -69,7 +69,7 @@ pub const MAX_WAVE_SAMPLES: usize = 1 << 28;
 /// bounds memory whatever the number of lights. About 61 bytes a row (candidate radiance, kept
 /// row index, the shadow queue's columns): 2^19 rows are 32 MB, which keeps scene A with 2,000
 /// lights within 1.5× the peak memory of scene A with one (2^20 rows came to 2.03×).
-pub const DEFAULT_SHADOW_ROWS: usize = 1 << 19;
+pub(crate) const DEFAULT_SHADOW_ROWS: usize = 1 << 19;
 
 /// The stages one depth runs, in order.
 #[derive(Clone, Debug, PartialEq, Eq)]

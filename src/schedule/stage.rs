@@ -114,7 +114,7 @@ fn distinct(columns: &[ColumnAccess], access: Access) -> Vec<Column> {
 }
 
 /// `Queue.{a, b}, Other.{c}`: columns grouped by queue in first-use order.
-pub fn format_columns(columns: &[Column]) -> String {
+pub(crate) fn format_columns(columns: &[Column]) -> String {
     if columns.is_empty() {
         return "—".into();
     }

@@ -54,7 +54,7 @@ impl Stats {
     }
 
     /// Sum of all stage times.
-    pub fn total_seconds(&self) -> f64 {
+    pub(crate) fn total_seconds(&self) -> f64 {
         self.entries.values().map(|e| e.seconds).sum()
     }
 

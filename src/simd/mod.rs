@@ -51,7 +51,7 @@ impl Level {
     }
 
     /// True when this CPU can run code compiled for `self`.
-    pub fn is_supported(self) -> bool {
+    pub(crate) fn is_supported(self) -> bool {
         match self {
             Level::Portable => true,
             #[cfg(target_arch = "x86_64")]
@@ -143,7 +143,7 @@ unsafe fn run_avx512<K: Kernel>(kernel: K) -> K::Output {
 /// place of 24 scalar moves (which is what the compiler made of the stride-3 loop); when
 /// inlined into a kernel compiled for AVX2 or AVX-512 it stays in registers.
 #[inline(always)]
-pub fn deinterleave3x8(rows: &[f32; 24]) -> [[f32; 8]; 3] {
+pub(crate) fn deinterleave3x8(rows: &[f32; 24]) -> [[f32; 8]; 3] {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above).
@@ -154,7 +154,7 @@ pub fn deinterleave3x8(rows: &[f32; 24]) -> [[f32; 8]; 3] {
 
 /// The inverse of [`deinterleave3x8`]: lane `l` of component `k` goes to `rows[3l + k]`.
 #[inline(always)]
-pub fn interleave3x8(lanes: &[[f32; 8]; 3], rows: &mut [f32; 24]) {
+pub(crate) fn interleave3x8(lanes: &[[f32; 8]; 3], rows: &mut [f32; 24]) {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU supports AVX2 (checked just above).
