@@ -78,9 +78,9 @@ fn divide(x: [f32; LANES], d: f32, rcp: Option<f32>) -> [f32; LANES] {
     }
 }
 
-/// The generate kernel over one chunk of slots `first..first + direction.len()`: per group of 8
-/// slots, the pixel and stratum of each (stepped, never divided, from the chunk's first slot),
-/// then the jitter hash, the image-plane point and the normalised direction in lanes — the
+/// The generate kernel over one chunk of slots `first..first + direction.len()`: per group of
+/// `LANES` slots, the pixel and stratum of each (stepped, never divided, from the chunk's first
+/// slot), then the jitter hash, the image-plane point and the normalised direction in lanes — the
 /// operations of [`camera_ray`] in its order, so every ray is bit-identical to it.
 struct CameraKernel<'a> {
     camera: &'a Camera,

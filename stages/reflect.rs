@@ -38,25 +38,21 @@ crate::kernels! {
     pub(crate) const KERNELS = [spawn_reflection_rays(ReflectHits, NextRays)];
 }
 
-/// The reflection of hit row `i` about its shading normal, `r = d − 2(d·n)n`, from the offset hit
-/// point (the geometric surface's), weight `weight·α`.
-#[inline]
-pub fn reflection_ray(world: &World, hits: &ReflectHits<'_>, i: usize) -> RayItem {
-    let (d, n) = (hits.direction[i], hits.shading[i]);
-    let alpha = world.materials()[hits.material[i] as usize].alpha;
-    RayItem {
-        origin: hits.spawn[i],
-        direction: mirror(d, n),
-        t_max: f32::INFINITY,
-        weight: hits.weight[i] * alpha,
-        slot: hits.slot[i],
-    }
-}
-
-/// `d` reflected about the unit normal `n`: `d − 2(d·n)n`.
+/// The reflection of one hit about its shading normal `n`, `r = d − 2(d·n)n`, from the offset hit
+/// point `spawn` (the geometric surface's), weight `weight·α`: the per-row body of
+/// [`spawn_reflection_rays`].
 #[inline(always)]
-pub fn mirror(d: Vec3, n: Vec3) -> Vec3 {
-    d - 2.0 * d.dot(n) * n
+pub(crate) fn reflection_ray(
+    (spawn, d, n): (Vec3, Vec3, Vec3),
+    (weight, alpha, slot): (Vec3, f32, SampleSlot),
+) -> RayItem {
+    RayItem {
+        origin: spawn,
+        direction: d - 2.0 * d.dot(n) * n,
+        t_max: f32::INFINITY,
+        weight: weight * alpha,
+        slot,
+    }
 }
 
 /// Spawns the next depth's rays into `next` (overwritten), in slot order: a two-pass compaction
@@ -100,9 +96,12 @@ pub(crate) fn spawn_reflection_rays(
         for i in 0..material.len() {
             let a = alpha[material[i] as usize];
             if a > 0.0 {
-                // `reflection_ray` of row i.
-                (o_origin[j], o_direction[j]) = (spawn[i], mirror(direction[i], shading[i]));
-                (o_t_max[j], o_weight[j], out.slot[j]) = (f32::INFINITY, weight[i] * a, slot[i]);
+                let r = reflection_ray(
+                    (spawn[i], direction[i], shading[i]),
+                    (weight[i], a, slot[i]),
+                );
+                (o_origin[j], o_direction[j], o_t_max[j]) = (r.origin, r.direction, r.t_max);
+                (o_weight[j], out.slot[j]) = (r.weight, r.slot);
                 j += 1;
             }
         }

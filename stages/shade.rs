@@ -219,6 +219,16 @@ pub(crate) struct ShadeScratch {
 pub(crate) fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHits<'_>) {
     let (prim, origin, direction, t, weight) =
         (hits.prim, hits.origin, hits.direction, hits.t, hits.weight);
+    // With shadows on, a hit emits only its ambient term: `(1 − α)` and `ka·Ia` per material,
+    // once per call, then `(weight·(1 − α))·(ka·Ia)` per row.
+    let ambient_terms: Vec<(f32, Vec3)> = if settings.shadows {
+        let terms = world.materials().iter();
+        terms
+            .map(|m| (1.0 - m.alpha, m.ka * settings.ambient))
+            .collect()
+    } else {
+        Vec::new()
+    };
     (
         hits.point.par_chunks_mut(MIN_CHUNK),
         hits.normal.par_chunks_mut(MIN_CHUNK),
@@ -246,24 +256,10 @@ pub(crate) fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHit
             );
             if settings.shadows {
                 // Ambient only (the lights come through shadow rays): `shade_hit`'s operations
-                // on the row's material, without building its `Surface`: `(1 − α)` and
-                // `ka·Ia` per material (a small table), then `(weight·(1 − α))·(ka·Ia)`.
-                let mut terms = [(0.0f32, Vec3::ZERO); 8];
-                let materials = world.materials();
-                let small = materials.len() <= terms.len();
-                if small {
-                    for (t, m) in terms.iter_mut().zip(materials) {
-                        *t = (1.0 - m.alpha, m.ka * settings.ambient);
-                    }
-                }
+                // on the row's material, without building its `Surface`.
                 let weight = &weight[r.clone()];
                 for (k, e) in emitted.iter_mut().enumerate() {
-                    let (keep, ambient) = if small {
-                        terms[material[k] as usize]
-                    } else {
-                        let m = &materials[material[k] as usize];
-                        (1.0 - m.alpha, m.ka * settings.ambient)
-                    };
+                    let (keep, ambient) = ambient_terms[material[k] as usize];
                     *e = (weight[k] * keep) * ambient;
                 }
                 return;

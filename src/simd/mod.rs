@@ -149,6 +149,13 @@ pub(crate) fn deinterleave3x8(rows: &[f32; 24]) -> [[f32; 8]; 3] {
         // SAFETY: the CPU supports AVX2 (checked just above).
         return unsafe { shuffle3::deinterleave(rows) };
     }
+    deinterleave3x8_scalar(rows)
+}
+
+/// [`deinterleave3x8`]'s definition, one float at a time: the portable form, and what the AVX2
+/// form is checked against.
+#[inline(always)]
+fn deinterleave3x8_scalar(rows: &[f32; 24]) -> [[f32; 8]; 3] {
     std::array::from_fn(|k| std::array::from_fn(|l| rows[3 * l + k]))
 }
 
@@ -160,6 +167,12 @@ pub(crate) fn interleave3x8(lanes: &[[f32; 8]; 3], rows: &mut [f32; 24]) {
         // SAFETY: the CPU supports AVX2 (checked just above).
         return unsafe { shuffle3::interleave(lanes, rows) };
     }
+    interleave3x8_scalar(lanes, rows);
+}
+
+/// [`interleave3x8`]'s definition, one float at a time (see [`deinterleave3x8_scalar`]).
+#[inline(always)]
+fn interleave3x8_scalar(lanes: &[[f32; 8]; 3], rows: &mut [f32; 24]) {
     for l in 0..8 {
         for k in 0..3 {
             rows[3 * l + k] = lanes[k][l];
@@ -312,12 +325,18 @@ mod tests {
     #[test]
     fn stride_three_shuffles_move_every_float_to_its_lane_and_back() {
         let rows: [f32; 24] = std::array::from_fn(|i| i as f32 + 0.5);
-        let lanes = deinterleave3x8(&rows);
+        // The scalar definition, then the form this CPU runs (AVX2's shuffles where it has
+        // them) against it.
+        let lanes = deinterleave3x8_scalar(&rows);
         for l in 0..8 {
             for k in 0..3 {
                 assert_eq!(lanes[k][l], rows[3 * l + k], "lane {l} component {k}");
             }
         }
+        let mut back = [0.0; 24];
+        interleave3x8_scalar(&lanes, &mut back);
+        assert_eq!(back, rows);
+        assert_eq!(deinterleave3x8(&rows), lanes);
         let mut back = [0.0; 24];
         interleave3x8(&lanes, &mut back);
         assert_eq!(back, rows);
