@@ -22,7 +22,7 @@ mod x4;
 
 pub(crate) use wide::Pair;
 pub(crate) use wide::{Wide, WideKernel, dispatch_wide};
-pub(crate) use x4::{F32x4, M32x4, max_ps, min_ps};
+pub(crate) use x4::{F32x4, max_ps, min_ps};
 
 use std::sync::OnceLock;
 

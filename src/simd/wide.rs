@@ -64,6 +64,18 @@ pub(crate) trait Wide: Copy {
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
     /// Bit `k` set for a true lane `k`.
     fn bits(m: Self::Mask) -> u32;
+
+    // issue 24: the mask operations the kD traversal's interval step needs, so the step is
+    // written once over `Wide` for one lane (`f32`), four (`F32x4`) and the wide types.
+    /// `a & !b`.
+    fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// Mask `a` where `m`, else `b`.
+    fn select_mask(m: Self::Mask, a: Self::Mask, b: Self::Mask) -> Self::Mask;
+    /// No lane set.
+    fn none() -> Self::Mask;
+    /// Every lane set.
+    fn all() -> Self::Mask;
+    // end issue 24
 }
 
 /// A kernel generic over the lane type: [`dispatch_wide`] runs it with the widest [`Wide`] the
@@ -184,6 +196,23 @@ impl<V: Wide> Wide for Pair<V> {
     fn bits(m: Self::Mask) -> u32 {
         V::bits(m.0) | V::bits(m.1) << V::LANES
     }
+    // issue 24
+    #[inline(always)]
+    fn andnot(a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        (V::andnot(a.0, b.0), V::andnot(a.1, b.1))
+    }
+    #[inline(always)]
+    fn select_mask(m: Self::Mask, a: Self::Mask, b: Self::Mask) -> Self::Mask {
+        (V::select_mask(m.0, a.0, b.0), V::select_mask(m.1, a.1, b.1))
+    }
+    #[inline(always)]
+    fn none() -> Self::Mask {
+        (V::none(), V::none())
+    }
+    #[inline(always)]
+    fn all() -> Self::Mask {
+        (V::all(), V::all())
+    }
 }
 
 /// Eight lanes in an array, each operation a scalar loop (the portable path).
@@ -283,7 +312,121 @@ impl Wide for Portable8 {
     fn bits(m: u32) -> u32 {
         m
     }
+    // issue 24
+    #[inline(always)]
+    fn andnot(a: u32, b: u32) -> u32 {
+        a & !b
+    }
+    #[inline(always)]
+    fn select_mask(m: u32, a: u32, b: u32) -> u32 {
+        (a & m) | (b & !m)
+    }
+    #[inline(always)]
+    fn none() -> u32 {
+        0
+    }
+    #[inline(always)]
+    fn all() -> u32 {
+        0xff
+    }
 }
+
+// issue 24: one lane, so the single-ray loop's interval step is the lanes' formula.
+/// One lane: the plain scalar operations (`min`/`max` with `minps`/`maxps` semantics, see
+/// [`super::min_ps`]); the mask is a `bool`.
+impl Wide for f32 {
+    const LANES: usize = 1;
+    type Mask = bool;
+    #[inline(always)]
+    fn splat(x: f32) -> f32 {
+        x
+    }
+    #[inline(always)]
+    fn load(a: &[f32]) -> f32 {
+        a[0]
+    }
+    #[inline(always)]
+    fn store(self, a: &mut [f32]) {
+        a[0] = self;
+    }
+    #[inline(always)]
+    fn add(self, o: f32) -> f32 {
+        self + o
+    }
+    #[inline(always)]
+    fn sub(self, o: f32) -> f32 {
+        self - o
+    }
+    #[inline(always)]
+    fn mul(self, o: f32) -> f32 {
+        self * o
+    }
+    #[inline(always)]
+    fn div(self, o: f32) -> f32 {
+        self / o
+    }
+    #[inline(always)]
+    fn min(self, o: f32) -> f32 {
+        super::min_ps(self, o)
+    }
+    #[inline(always)]
+    fn max(self, o: f32) -> f32 {
+        super::max_ps(self, o)
+    }
+    #[inline(always)]
+    fn abs(self) -> f32 {
+        f32::abs(self)
+    }
+    #[inline(always)]
+    fn lt(self, o: f32) -> bool {
+        self < o
+    }
+    #[inline(always)]
+    fn le(self, o: f32) -> bool {
+        self <= o
+    }
+    #[inline(always)]
+    fn gt(self, o: f32) -> bool {
+        self > o
+    }
+    #[inline(always)]
+    fn eq(self, o: f32) -> bool {
+        self == o
+    }
+    #[inline(always)]
+    fn and(a: bool, b: bool) -> bool {
+        a & b
+    }
+    #[inline(always)]
+    fn or(a: bool, b: bool) -> bool {
+        a | b
+    }
+    #[inline(always)]
+    fn select(m: bool, a: f32, b: f32) -> f32 {
+        if m { a } else { b }
+    }
+    #[inline(always)]
+    fn bits(m: bool) -> u32 {
+        m as u32
+    }
+    #[inline(always)]
+    fn andnot(a: bool, b: bool) -> bool {
+        a & !b
+    }
+    #[inline(always)]
+    fn select_mask(m: bool, a: bool, b: bool) -> bool {
+        if m { a } else { b }
+    }
+    #[inline(always)]
+    fn none() -> bool {
+        false
+    }
+    #[inline(always)]
+    fn all() -> bool {
+        true
+    }
+}
+// end issue 24
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
@@ -395,6 +538,27 @@ mod x86 {
             // SAFETY: as `add`.
             unsafe { _mm256_movemask_ps(m) as u32 }
         }
+        // issue 24
+        #[inline(always)]
+        fn andnot(a: __m256, b: __m256) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_andnot_ps(b, a) }
+        }
+        #[inline(always)]
+        fn select_mask(m: __m256, a: __m256, b: __m256) -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_blendv_ps(b, a, m) }
+        }
+        #[inline(always)]
+        fn none() -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_setzero_ps() }
+        }
+        #[inline(always)]
+        fn all() -> __m256 {
+            // SAFETY: as `add`.
+            unsafe { _mm256_castsi256_ps(_mm256_set1_epi32(-1)) }
+        }
     }
 
     /// Sixteen lanes in one AVX-512 register.
@@ -493,6 +657,23 @@ mod x86 {
         fn bits(m: __mmask16) -> u32 {
             m as u32
         }
+        // issue 24
+        #[inline(always)]
+        fn andnot(a: __mmask16, b: __mmask16) -> __mmask16 {
+            a & !b
+        }
+        #[inline(always)]
+        fn select_mask(m: __mmask16, a: __mmask16, b: __mmask16) -> __mmask16 {
+            (a & m) | (b & !m)
+        }
+        #[inline(always)]
+        fn none() -> __mmask16 {
+            0
+        }
+        #[inline(always)]
+        fn all() -> __mmask16 {
+            0xffff
+        }
     }
 }
 
@@ -579,6 +760,19 @@ mod tests {
                     mask(&|x, y| x.partial_cmp(&y).is_some_and(|o| o.is_ne()))
                 );
                 check(V::splat(a[0]), &|_, _| a[0], &mut out);
+                // issue 24: the mask operations.
+                let (lt, gt, eq) = (V::lt(va, vb), V::gt(va, vb), V::eq(va, vb));
+                assert_eq!(V::bits(V::andnot(lt, eq)), mask(&|x, y| x < y && x != y));
+                assert_eq!(
+                    V::bits(V::select_mask(lt, eq, gt)),
+                    mask(&|x, y| if x < y { x == y } else { x > y })
+                );
+                assert_eq!(V::bits(V::none()), 0);
+                assert_eq!(V::bits(V::all()), mask(&|_, _| true));
+                assert_eq!(
+                    V::bits(V::andnot(V::all(), lt)),
+                    mask(&|x, y| x >= y || x.is_nan() || y.is_nan())
+                );
             }
             n
         }
@@ -594,6 +788,13 @@ mod tests {
             };
             assert_eq!(lanes, want, "{level:?}");
         }
+    }
+
+    // issue 24
+    #[test]
+    fn one_and_four_lanes_compute_the_scalar_bits() {
+        assert_eq!(Check.run::<f32>(), 1);
+        assert_eq!(Check.run::<super::super::F32x4>(), 4);
     }
 
     /// [`Check`] over [`Pair`]s of the level's lanes.

@@ -27,7 +27,7 @@
 //! and interval ends) proves, node by node from the root, that every lane goes to the same one
 //! child with its interval unchanged, so those nodes cost a few scalar operations for all
 //! [`WIDE`] rays and no lane work. Elsewhere every lane takes exactly the single-ray step
-//! ([`super::interval::step`], written out per lane below so LLVM vectorises it), visits its
+//! ([`super::interval::step`] over the `V` lanes), visits its
 //! leaves in the single ray's order and culls with its own best hit, so answers are bit-identical
 //! to [`KdAccel::intersect_closest`]. Where at most [`SOLO`] lanes are left, they go on one by
 //! one through the single-ray loop from their own intervals and best hits. Lanes agree on the
@@ -46,7 +46,7 @@
 use glam::Vec3;
 
 use super::KdAccel;
-use super::interval::{DELTA, HI};
+use super::interval::{DELTA, HI, step};
 use super::ray::Ray;
 use super::single::Entry;
 use super::visit::{Closest, Visitor};
@@ -322,50 +322,6 @@ struct Rows<'a> {
     t_max: &'a [f32],
     /// The rows of this frustum (at most [`WIDE`]).
     rows: &'a [u32],
-}
-
-/// The single-ray step ([`super::interval::step`]) for the `V` lanes at the plane `split`, origins
-/// `o` on the node's axis: returns the normalised near `t1`, far `t0`, far `t1` and the bits of
-/// the lanes entering the near and the far child. All three sign cases are computed and
-/// blended; each value is the scalar step's, bit for bit.
-#[inline(always)]
-fn step_lanes<V: Wide>(split: f32, o: V, inv: V, slack: V, t0: V, t1: V) -> (V, V, V, u32, u32) {
-    let (zero, hi) = (V::splat(0.0), V::splat(HI));
-    let tp = V::splat(split).sub(o).mul(inv);
-    let tps = tp.add(slack);
-    let pos = V::gt(tp, zero);
-    let nonpos = V::le(tp, zero);
-    // tp > 0: near [t0, min(t1, tp + δ)], far [max(t0, tp - δ), t1].
-    let p_far_t0 = t0.max(tp.sub(slack));
-    let p_near_t1 = t1.min(tps);
-    let p_skip = V::lt(tps.mul(hi), t0);
-    let p_far = V::le(p_far_t0, t1.mul(hi));
-    // tp <= 0: near [t0, t1], far [t0, min(t1, tp + δ)] (the same `min(t1, tp + δ)`).
-    let q_far = V::le(t0, p_near_t1.mul(hi));
-    // Neither (a NaN `tp`: origin on the plane of a parallel ray): both, unchanged.
-    let skip = V::and(pos, p_skip);
-    let far = V::or(
-        V::and(pos, p_far),
-        V::and(not::<V>(pos), V::or(q_far, not::<V>(nonpos))),
-    );
-    let both = V::and(far, not::<V>(skip));
-    let near_t1 = V::select(V::and(both, pos), p_near_t1, t1);
-    let far_t1 = V::select(V::and(both, nonpos), p_near_t1, t1);
-    let far_t0 = V::select(pos, p_far_t0, t0);
-    (
-        near_t1,
-        far_t0,
-        far_t1,
-        !V::bits(skip),
-        V::bits(V::or(far, skip)),
-    )
-}
-
-/// The lanes where `m` is false.
-#[inline(always)]
-fn not<V: Wide>(m: V::Mask) -> V::Mask {
-    let one = V::splat(1.0);
-    V::eq(V::select(m, V::splat(0.0), one), one)
 }
 
 /// The smallest lane of `x` (`minps` semantics; the bounds below hold no NaN).
@@ -1101,19 +1057,19 @@ impl KdAccel {
                     if (m >> at) & group_bits(w) == 0 {
                         continue;
                     }
-                    let (nt1, ft0, ft1, gn, gf) = step_lanes::<V>(
-                        split,
+                    let s = step::<V>(
+                        V::splat(split),
                         V::load(&f.org[axis][at..]),
                         V::load(&f.inv[axis][at..]),
                         V::load(&f.slack[axis][at..]),
                         V::load(&e.t0[at..]),
                         V::load(&e.t1[at..]),
                     );
-                    nt1.store(&mut near_t1[at..]);
-                    ft0.store(&mut far_t0[at..]);
-                    ft1.store(&mut far_t1[at..]);
-                    go_near |= (gn as u64 & group_bits(w)) << at;
-                    go_far |= (gf as u64) << at;
+                    s.near_t1.store(&mut near_t1[at..]);
+                    s.far_t0.store(&mut far_t0[at..]);
+                    s.far_t1.store(&mut far_t1[at..]);
+                    go_near |= (!V::bits(s.skip_near) as u64 & group_bits(w)) << at;
+                    go_far |= (V::bits(s.go_far) as u64) << at;
                 }
                 go_near &= m;
                 go_far &= m;

@@ -2,16 +2,15 @@
 //! which part of its `[t0, t1]` interval, with the `δ` and `SLACK` tolerances.
 //!
 //! Reads one inner node's split (axis value) and a ray's origin, reciprocal direction and slack
-//! on that axis plus its current interval; writes a [`Step`]. Generic over [`Lanes`]: `f32` for
-//! the single-ray loop, [`F32x4`] for the 4-ray packet loop, so both make exactly the same
-//! decisions and compute the same interval bits lane by lane (the `f32` operations have the
-//! SSE2 instructions' semantics, see [`crate::simd`]). The formula is written as
-//! its three cases (the sign of the plane distance, or NaN): the single-ray loop branches on the
-//! case, the packet loop computes all three and blends them per lane ([`Lanes::by_sign`]).
+//! on that axis plus its current interval; writes a [`Step`]. Generic over [`Wide`], the crate's
+//! one lane vocabulary: `f32` for the single-ray loop, [`F32x4`](crate::simd::F32x4) for the
+//! 4-ray packet loop and 8 or 16 lanes for the frusta, so every loop makes exactly the same
+//! decisions and computes the same interval bits lane by lane (the operations have the SSE
+//! instructions' semantics, see [`crate::simd`]). The formula is written as its three cases
+//! (the sign of the plane distance, or NaN): one lane branches on the case, several compute all
+//! three and blend them per lane ([`by_sign`]).
 
-use std::ops::{Add, BitAnd, BitOr, Mul, Sub};
-
-use crate::simd::{F32x4, M32x4, max_ps, min_ps};
+use crate::simd::Wide;
 
 /// Relative slack on ray-interval comparisons (plane distances and hit `t` carry a few ulps).
 pub(super) const SLACK: f32 = 1e-4;
@@ -21,187 +20,44 @@ pub(super) const HI: f32 = 1.0 + SLACK;
 /// farthest root corner (the per-ray `δ`, see the module docs of `traverse`).
 pub(super) const DELTA: f32 = 1.0 / (1 << 18) as f32;
 
-/// The operations the interval step needs, with SSE2 semantics (`min`/`max` are `minps`/`maxps`:
-/// the second operand when either is NaN). Implemented by `f32` (mask `bool`) and [`F32x4`].
-pub(super) trait Lanes:
-    Copy + Add<Output = Self> + Sub<Output = Self> + Mul<Output = Self>
-{
-    /// Per-lane truth values.
-    type Mask: Copy + BitAnd<Output = Self::Mask> + BitOr<Output = Self::Mask>;
-    /// All lanes `x`.
-    fn splat(x: f32) -> Self;
-    /// `self` where `self < o`, else `o`.
-    fn min(self, o: Self) -> Self;
-    /// `self` where `self > o`, else `o`.
-    fn max(self, o: Self) -> Self;
-    /// `self < o`.
-    fn lt(self, o: Self) -> Self::Mask;
-    /// `self <= o`.
-    fn le(self, o: Self) -> Self::Mask;
-    /// `self > o`.
-    fn gt(self, o: Self) -> Self::Mask;
-    /// `self == o`.
-    fn eq(self, o: Self) -> Self::Mask;
-    /// `m & !n`.
-    fn and_not(m: Self::Mask, n: Self::Mask) -> Self::Mask;
-    /// `a` where `m`, else `b`.
-    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
-    /// `a` where `m`, else `b`.
-    fn select_mask(m: Self::Mask, a: Self::Mask, b: Self::Mask) -> Self::Mask;
-    /// A mask with no lane set.
-    fn none() -> Self::Mask;
-    /// A mask with every lane set.
-    fn all() -> Self::Mask;
-
-    /// Per lane, `pos()` where `tp > 0`, `nonpos()` where `tp <= 0` and `nan()` where `tp` is
-    /// NaN. Scalars branch and evaluate one case (a predicted branch keeps the single-ray
-    /// loop's dependency chains short, measured: a branch-free scalar step is ~20 % slower);
-    /// lanes evaluate all three and blend (the default).
-    #[inline(always)]
-    fn by_sign(
-        tp: Self,
-        pos: impl FnOnce() -> Case<Self>,
-        nonpos: impl FnOnce() -> Case<Self>,
-        nan: impl FnOnce() -> Case<Self>,
-    ) -> Case<Self> {
-        let zero = Self::splat(0.0);
-        let (p, q) = (tp.gt(zero), tp.le(zero));
-        let (a, b, c) = (pos(), nonpos(), nan());
-        let f = |x: Self, y: Self, z: Self| Self::select(p, x, Self::select(q, y, z));
-        let m = |x, y, z| Self::select_mask(p, x, Self::select_mask(q, y, z));
-        Case {
-            near_t1: f(a.near_t1, b.near_t1, c.near_t1),
-            far_t0: f(a.far_t0, b.far_t0, c.far_t0),
-            far_t1: f(a.far_t1, b.far_t1, c.far_t1),
-            skip_near: m(a.skip_near, b.skip_near, c.skip_near),
-            far: m(a.far, b.far, c.far),
-        }
-    }
-}
-
-impl Lanes for f32 {
-    type Mask = bool;
-    #[inline(always)]
-    fn splat(x: f32) -> f32 {
-        x
-    }
-    #[inline(always)]
-    fn min(self, o: f32) -> f32 {
-        min_ps(self, o)
-    }
-    #[inline(always)]
-    fn max(self, o: f32) -> f32 {
-        max_ps(self, o)
-    }
-    #[inline(always)]
-    fn lt(self, o: f32) -> bool {
-        self < o
-    }
-    #[inline(always)]
-    fn le(self, o: f32) -> bool {
-        self <= o
-    }
-    #[inline(always)]
-    fn gt(self, o: f32) -> bool {
-        self > o
-    }
-    #[inline(always)]
-    fn eq(self, o: f32) -> bool {
-        self == o
-    }
-    #[inline(always)]
-    fn and_not(m: bool, n: bool) -> bool {
-        m & !n
-    }
-    #[inline(always)]
-    fn select(m: bool, a: f32, b: f32) -> f32 {
-        if m { a } else { b }
-    }
-    #[inline(always)]
-    fn select_mask(m: bool, a: bool, b: bool) -> bool {
-        if m { a } else { b }
-    }
-    #[inline(always)]
-    fn none() -> bool {
-        false
-    }
-    #[inline(always)]
-    fn all() -> bool {
-        true
-    }
-    #[inline(always)]
-    fn by_sign(
-        tp: f32,
-        pos: impl FnOnce() -> Case<f32>,
-        nonpos: impl FnOnce() -> Case<f32>,
-        nan: impl FnOnce() -> Case<f32>,
-    ) -> Case<f32> {
-        if tp > 0.0 {
+/// Per lane, `pos()` where `tp > 0`, `nonpos()` where `tp <= 0` and `nan()` where `tp` is NaN.
+/// One lane branches and evaluates one case (a predicted branch keeps the single-ray loop's
+/// dependency chains short, measured: a branch-free scalar step is ~20 % slower); several lanes
+/// evaluate all three and blend.
+#[inline(always)]
+fn by_sign<L: Wide>(
+    tp: L,
+    pos: impl FnOnce() -> Case<L>,
+    nonpos: impl FnOnce() -> Case<L>,
+    nan: impl FnOnce() -> Case<L>,
+) -> Case<L> {
+    let zero = L::splat(0.0);
+    let (p, q) = (tp.gt(zero), tp.le(zero));
+    if L::LANES == 1 {
+        return if L::bits(p) != 0 {
             pos()
-        } else if tp <= 0.0 {
+        } else if L::bits(q) != 0 {
             nonpos()
         } else {
             nan()
-        }
+        };
     }
-}
-
-impl Lanes for F32x4 {
-    type Mask = M32x4;
-    #[inline(always)]
-    fn splat(x: f32) -> F32x4 {
-        F32x4::splat(x)
-    }
-    #[inline(always)]
-    fn min(self, o: F32x4) -> F32x4 {
-        F32x4::min(self, o)
-    }
-    #[inline(always)]
-    fn max(self, o: F32x4) -> F32x4 {
-        F32x4::max(self, o)
-    }
-    #[inline(always)]
-    fn lt(self, o: F32x4) -> M32x4 {
-        F32x4::lt(self, o)
-    }
-    #[inline(always)]
-    fn le(self, o: F32x4) -> M32x4 {
-        F32x4::le(self, o)
-    }
-    #[inline(always)]
-    fn gt(self, o: F32x4) -> M32x4 {
-        F32x4::gt(self, o)
-    }
-    #[inline(always)]
-    fn eq(self, o: F32x4) -> M32x4 {
-        F32x4::eq(self, o)
-    }
-    #[inline(always)]
-    fn and_not(m: M32x4, n: M32x4) -> M32x4 {
-        m.and_not(n)
-    }
-    #[inline(always)]
-    fn select(m: M32x4, a: F32x4, b: F32x4) -> F32x4 {
-        m.select(a, b)
-    }
-    #[inline(always)]
-    fn select_mask(m: M32x4, a: M32x4, b: M32x4) -> M32x4 {
-        m.select_mask(a, b)
-    }
-    #[inline(always)]
-    fn none() -> M32x4 {
-        M32x4::none()
-    }
-    #[inline(always)]
-    fn all() -> M32x4 {
-        M32x4::all()
+    let (a, b, c) = (pos(), nonpos(), nan());
+    let f = |x: L, y: L, z: L| L::select(p, x, L::select(q, y, z));
+    let m = |x, y, z| L::select_mask(p, x, L::select_mask(q, y, z));
+    Case {
+        near_t1: f(a.near_t1, b.near_t1, c.near_t1),
+        far_t0: f(a.far_t0, b.far_t0, c.far_t0),
+        far_t1: f(a.far_t1, b.far_t1, c.far_t1),
+        skip_near: m(a.skip_near, b.skip_near, c.skip_near),
+        far: m(a.far, b.far, c.far),
     }
 }
 
 /// One case of the step, before the normalisation of [`Step`]: the near and far intervals and
 /// which children are entered.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Case<L: Lanes> {
+pub(super) struct Case<L: Wide> {
     /// End of the near child's interval (it starts at the node's `t0`).
     pub(super) near_t1: L,
     /// Start of the far child's interval.
@@ -219,7 +75,7 @@ pub(super) struct Case<L: Lanes> {
 /// one child is entered its interval is the one to continue with (`near_t1 == t1` then, and
 /// `far_t1 == t1`), so a caller never needs the case that produced it.
 #[derive(Clone, Copy, Debug)]
-pub(super) struct Step<L: Lanes> {
+pub(super) struct Step<L: Wide> {
     /// The left child (below the split) is the near one.
     pub(super) near_left: L::Mask,
     /// The near child is not entered (the others enter it).
@@ -253,13 +109,13 @@ pub(super) struct Step<L: Lanes> {
 /// so `minps`/`maxps` give the values `f32::min`/`max` would (up to the sign of a zero, which
 /// no comparison sees).
 #[inline(always)]
-pub(super) fn step<L: Lanes>(split: L, origin: L, inv: L, slack: L, t0: L, t1: L) -> Step<L> {
+pub(super) fn step<L: Wide>(split: L, origin: L, inv: L, slack: L, t0: L, t1: L) -> Step<L> {
     let (near_left, c) = split_case(split, origin, inv, slack, t0, t1);
-    let both = L::and_not(c.far, c.skip_near);
+    let both = L::andnot(c.far, c.skip_near);
     Step {
         near_left,
         skip_near: c.skip_near,
-        go_far: c.far | c.skip_near,
+        go_far: L::or(c.far, c.skip_near),
         near_t1: L::select(both, c.near_t1, t1),
         far_t0: c.far_t0,
         far_t1: L::select(both, c.far_t1, t1),
@@ -272,7 +128,7 @@ pub(super) fn step<L: Lanes>(split: L, origin: L, inv: L, slack: L, t0: L, t1: L
 /// branches on "both" (its branches are the normalisation). "Near not entered" is written
 /// `(tp + δ)·HI < t0`, the negation of `t0 <= (tp + δ)·HI` as neither is NaN when `tp > 0`.
 #[inline(always)]
-pub(super) fn split_case<L: Lanes>(
+pub(super) fn split_case<L: Wide>(
     split: L,
     origin: L,
     inv: L,
@@ -282,19 +138,19 @@ pub(super) fn split_case<L: Lanes>(
 ) -> (L::Mask, Case<L>) {
     let zero = L::splat(0.0);
     let hi = L::splat(HI);
-    let tp = (split - origin) * inv;
-    let tps = tp + slack;
-    let near_left = origin.lt(split) | (origin.eq(split) & inv.lt(zero));
-    let case = L::by_sign(
+    let tp = split.sub(origin).mul(inv);
+    let tps = tp.add(slack);
+    let near_left = L::or(origin.lt(split), L::and(origin.eq(split), inv.lt(zero)));
+    let case = by_sign(
         tp,
         || {
-            let far_t0 = t0.max(tp - slack);
+            let far_t0 = t0.max(tp.sub(slack));
             Case {
                 near_t1: t1.min(tps),
                 far_t0,
                 far_t1: t1,
-                skip_near: (tps * hi).lt(t0),
-                far: far_t0.le(t1 * hi),
+                skip_near: tps.mul(hi).lt(t0),
+                far: far_t0.le(t1.mul(hi)),
             }
         },
         || {
@@ -304,7 +160,7 @@ pub(super) fn split_case<L: Lanes>(
                 far_t0: t0,
                 far_t1,
                 skip_near: L::none(),
-                far: t0.le(far_t1 * hi),
+                far: t0.le(far_t1.mul(hi)),
             }
         },
         || Case {
@@ -320,7 +176,8 @@ pub(super) fn split_case<L: Lanes>(
 
 #[cfg(test)]
 mod tests {
-    use super::{F32x4, HI, step};
+    use super::{HI, step};
+    use crate::simd::F32x4;
 
     /// The step as first written for the single-ray loop (branches on the sign of `tp`,
     /// `f32::min`/`max`): the specification the branch-free [`step`] must reproduce.

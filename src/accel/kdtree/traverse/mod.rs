@@ -7,7 +7,7 @@
 //! - `ray`: per-ray data (reciprocal direction, `δ` slack, the triangle test's precomputation)
 //!   and the root-box clip;
 //! - `interval`: the node-interval step (near/far child intervals with `δ` and `SLACK`),
-//!   written once, generic over `f32` and 4 SIMD lanes;
+//!   written once over [`crate::simd::Wide`] lanes (`f32`, 4, 8 or 16 of them);
 //! - `visit`: the closest and occluded modes (leaf visit, culling, answer);
 //! - `single`: the single-ray loop; `packet`: the 4-ray packet loop and the batch driver;
 //!   `hit4`: one triangle against a packet's 4 rays;
