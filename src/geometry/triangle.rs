@@ -9,6 +9,7 @@ use glam::Vec3;
 
 use super::TriangleMesh;
 use super::offset::gamma;
+use crate::simd::Wide;
 
 /// Which ray/triangle test the kD traversal uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -143,6 +144,103 @@ impl WatertightRay {
         let det = u + v + w;
         let b = [(u / det) as f32, (v / det) as f32, (w / det) as f32];
         (det != 0.0 && b.iter().all(|x| x.is_finite())).then_some(b)
+    }
+}
+
+/// [`WatertightRay::intersect`] on `V` lanes (one ray per lane, sharing the axis permutation):
+/// the one lane form of the watertight test, used by every batched kD traversal (4-ray packets,
+/// frusta, light-rooted bundles). The same operations in the same order (no fused
+/// multiply-add), so a lane's `t` is the scalar test's, bit for bit; a lane with a zero edge
+/// function (`u`, `v` or `w`), where the scalar test falls back to `f64`, is reported in
+/// [`LaneHits::edge`] for the caller to retest with the scalar test.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct WatertightLanes<V: Wide> {
+    /// The origins on the permuted axes `kx`, `ky`, `kz`.
+    pub(crate) o: [V; 3],
+    /// Shear `sx` per lane.
+    pub(crate) sx: V,
+    /// Shear `sy` per lane.
+    pub(crate) sy: V,
+    /// Scale `sz` per lane.
+    pub(crate) sz: V,
+}
+
+/// What [`WatertightLanes::hit`] found.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct LaneHits<V> {
+    /// Live lanes, off every edge, that hit with `0 < t < t_max`.
+    pub(crate) hit: u32,
+    /// Live lanes with a zero edge function: the scalar test decides them.
+    pub(crate) edge: u32,
+    /// Each lane's `t` (meaningful in the `hit` lanes).
+    pub(crate) t: V,
+}
+
+impl<V: Wide> WatertightLanes<V> {
+    /// The lanes of `live` (bit `k` = lane `k`) that hit the triangle whose vertices, permuted
+    /// to `[p[kx], p[ky], p[kz]]`, are `a`, `b`, `c`, lane `k` with `0 < t < t_max[k]`. The
+    /// distance is computed only when some live lane is inside the triangle.
+    #[inline(always)]
+    pub(crate) fn hit(
+        &self,
+        a: &[f32; 3],
+        b: &[f32; 3],
+        c: &[f32; 3],
+        live: u32,
+        t_max: V,
+    ) -> LaneHits<V> {
+        let zero = V::splat(0.0);
+        let [ox, oy, oz] = self.o;
+        let (sx, sy) = (self.sx, self.sy);
+        // (No closures: a closure is not compiled with the dispatcher's target features, so the
+        // lane operations inside it would not be inlined.)
+        let (a0, a1, a2) = (
+            V::splat(a[0]).sub(ox),
+            V::splat(a[1]).sub(oy),
+            V::splat(a[2]).sub(oz),
+        );
+        let (b0, b1, b2) = (
+            V::splat(b[0]).sub(ox),
+            V::splat(b[1]).sub(oy),
+            V::splat(b[2]).sub(oz),
+        );
+        let (c0, c1, c2) = (
+            V::splat(c[0]).sub(ox),
+            V::splat(c[1]).sub(oy),
+            V::splat(c[2]).sub(oz),
+        );
+        let ax = a0.sub(sx.mul(a2));
+        let ay = a1.sub(sy.mul(a2));
+        let bx = b0.sub(sx.mul(b2));
+        let by = b1.sub(sy.mul(b2));
+        let cx = c0.sub(sx.mul(c2));
+        let cy = c1.sub(sy.mul(c2));
+        let u = cx.mul(by).sub(cy.mul(bx));
+        let v = ax.mul(cy).sub(ay.mul(cx));
+        let w = bx.mul(ay).sub(by.mul(ax));
+        let on_edge = V::or(V::or(V::eq(u, zero), V::eq(v, zero)), V::eq(w, zero));
+        let neg = V::or(V::or(V::lt(u, zero), V::lt(v, zero)), V::lt(w, zero));
+        let pos = V::or(V::or(V::gt(u, zero), V::gt(v, zero)), V::gt(w, zero));
+        let edge = V::bits(on_edge) & live;
+        let inside = !V::bits(V::and(neg, pos)) & live & !edge;
+        if inside == 0 {
+            return LaneHits {
+                hit: 0,
+                edge,
+                t: zero,
+            };
+        }
+        let det = u.add(v).add(w);
+        let az = self.sz.mul(a2);
+        let bz = self.sz.mul(b2);
+        let cz = self.sz.mul(c2);
+        let t = u.mul(az).add(v.mul(bz)).add(w.mul(cz)).div(det);
+        let ok = V::bits(V::and(V::gt(t, zero), V::lt(t, t_max))) & !V::bits(V::eq(det, zero));
+        LaneHits {
+            hit: ok & inside,
+            edge,
+            t,
+        }
     }
 }
 
@@ -380,5 +478,136 @@ mod tests {
         assert_eq!(hit, Some((2.0, 0)));
         assert!(intersect_all_occluded(&mesh, Vec3::ZERO, Vec3::Z, 2.5));
         assert!(!intersect_all_occluded(&mesh, Vec3::ZERO, Vec3::Z, 2.0));
+    }
+
+    /// [`WatertightLanes::hit`] at `V`'s width against [`WatertightRay::intersect`] on every
+    /// lane: random triangles and rays, and rays aimed exactly at vertices and edge midpoints of
+    /// grid triangles (zero edge functions), at `t_max` equal to the hit distance, behind the
+    /// origin and on degenerate triangles. Returns (lanes compared, hits, edge lanes).
+    fn lanes_against_scalar<V: Wide>() -> [usize; 3] {
+        let mut rng = crate::sampling::Rng(0x1a9e5 + V::LANES as u64);
+        let mut unit = move || (rng.next_u64() >> 40) as f32 / (1u64 << 24) as f32;
+        let (mut compared, mut hits, mut edges) = (0, 0, 0);
+        let n = V::LANES;
+        for trial in 0..20_000 {
+            let grid = trial % 2 == 0;
+            let mut coord = |lo: f32, hi: f32| {
+                let x = lo + (hi - lo) * unit();
+                if grid { (x * 4.0).round() / 4.0 } else { x }
+            };
+            let flip = if trial % 4 < 2 { 1.0 } else { -1.0 };
+            let mut tri = [[0.0f32; 3]; 3];
+            for p in &mut tri {
+                *p = [coord(-1.0, 1.0), coord(-1.0, 1.0), flip * coord(2.0, 4.0)];
+            }
+            if trial % 97 == 0 {
+                tri[2] = tri[1]; // degenerate
+            }
+            let mut rays = vec![];
+            let mut limits = vec![];
+            for lane in 0..n {
+                let o = [coord(-1.0, 1.0), coord(-1.0, 1.0), flip * coord(-1.0, 0.0)];
+                let (u, v) = (coord(0.0, 1.0), coord(0.0, 1.0));
+                let w = match (lane + trial / 2) % 4 {
+                    0 => [1.0, 0.0, 0.0],
+                    1 => [0.5, 0.5, 0.0],
+                    2 => [0.0, 0.5, 0.5],
+                    _ => [u * 0.5, v * 0.5, 1.0 - u * 0.5 - v * 0.5],
+                };
+                let target: [f32; 3] =
+                    std::array::from_fn(|k| w[0] * tri[0][k] + w[1] * tri[1][k] + w[2] * tri[2][k]);
+                let sign = if trial % 13 == 0 { -1.0 } else { 1.0 };
+                let d = Vec3::from(target) - Vec3::from(o);
+                limits.push([f32::INFINITY, 1.0, 0.5, 2.0][(trial + lane) % 4]);
+                rays.push(WatertightRay::new(Vec3::from(o), d * sign));
+            }
+            let Some(first) = rays[0] else { continue };
+            let k = [first.kx, first.ky, first.kz];
+            let mut live = 0u32;
+            for (lane, r) in rays.iter().enumerate() {
+                if r.is_some_and(|r| [r.kx, r.ky, r.kz] == k) {
+                    live |= 1 << lane;
+                }
+            }
+            let col = |f: &dyn Fn(&WatertightRay) -> f32| {
+                let v: Vec<f32> = rays.iter().map(|r| r.map_or(0.0, |r| f(&r))).collect();
+                V::load(&v)
+            };
+            let lanes = WatertightLanes {
+                o: [
+                    col(&|r| r.origin[k[0]]),
+                    col(&|r| r.origin[k[1]]),
+                    col(&|r| r.origin[k[2]]),
+                ],
+                sx: col(&|r| r.sx),
+                sy: col(&|r| r.sy),
+                sz: col(&|r| r.sz),
+            };
+            let perm = |p: &[f32; 3]| [p[k[0]], p[k[1]], p[k[2]]];
+            let h = lanes.hit(
+                &perm(&tri[0]),
+                &perm(&tri[1]),
+                &perm(&tri[2]),
+                live,
+                V::load(&limits),
+            );
+            assert_eq!(h.hit & !live, 0);
+            assert_eq!(h.edge & !live, 0);
+            assert_eq!(h.hit & h.edge, 0);
+            let mut ts = vec![0.0f32; n];
+            h.t.store(&mut ts);
+            for lane in 0..n {
+                if live >> lane & 1 == 0 {
+                    continue;
+                }
+                compared += 1;
+                if h.edge >> lane & 1 != 0 {
+                    edges += 1;
+                    continue;
+                }
+                let want = rays[lane]
+                    .unwrap()
+                    .intersect(tri[0], tri[1], tri[2], limits[lane]);
+                let got = (h.hit >> lane & 1 != 0).then_some(ts[lane]);
+                assert_eq!(
+                    got.map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "{} lanes, trial {trial}, lane {lane}",
+                    V::LANES
+                );
+                hits += want.is_some() as usize;
+            }
+        }
+        [compared, hits, edges]
+    }
+
+    /// [`lanes_against_scalar`] at every SIMD level's width.
+    struct LanesKernel;
+
+    impl crate::simd::WideKernel for LanesKernel {
+        type Output = [usize; 3];
+        #[inline(always)]
+        fn run<V: Wide>(self) -> [usize; 3] {
+            lanes_against_scalar::<V>()
+        }
+    }
+
+    #[test]
+    fn lane_test_matches_the_scalar_test_bit_for_bit() {
+        let mut results = vec![
+            lanes_against_scalar::<f32>(),
+            lanes_against_scalar::<crate::simd::F32x4>(),
+        ];
+        for level in crate::simd::Level::supported() {
+            results.push(crate::simd::dispatch_wide(level, LanesKernel));
+        }
+        for [compared, hits, edges] in results {
+            // Enough of each kind to be a test: hits, misses, and lanes on edges.
+            assert!(
+                hits > compared / 10 && hits < compared * 9 / 10,
+                "{hits} of {compared}"
+            );
+            assert!(edges > compared / 50, "{edges} edge lanes of {compared}");
+        }
     }
 }

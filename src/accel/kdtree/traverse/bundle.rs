@@ -60,7 +60,7 @@ use super::KdAccel;
 use super::interval::{DELTA, HI};
 use super::visit::Occluded;
 use crate::accel::kdtree::MAX_DEPTH;
-use crate::geometry::triangle::WatertightRay;
+use crate::geometry::triangle::{WatertightLanes, WatertightRay};
 use crate::simd::{Level, Pair, Wide, WideKernel, dispatch_wide};
 
 /// Most distinct far ends (lights) one batch bundles rays toward; rays toward others take the
@@ -721,14 +721,8 @@ struct Lanes<V: Wide> {
     pos: [V::Mask; 3],
     /// The same as one flag per axis.
     sign: [Sign; 3],
-    /// Original origin, permuted: `o[kx]`, `o[ky]`, `o[kz]`.
-    o: [V; 3],
-    /// Shear `sx`.
-    sx: V,
-    /// Shear `sy`.
-    sy: V,
-    /// Scale `sz`.
-    sz: V,
+    /// The original rays' watertight test (origins permuted to `kx`, `ky`, `kz`, shears).
+    tri: WatertightLanes<V>,
     /// Original `t_max`.
     t_max: V,
 }
@@ -852,10 +846,12 @@ impl KdAccel {
             slack_hi,
             pos,
             sign,
-            o: [o[k[0]], o[k[1]], o[k[2]]],
-            sx,
-            sy,
-            sz,
+            tri: WatertightLanes {
+                o: [o[k[0]], o[k[1]], o[k[2]]],
+                sx,
+                sy,
+                sz,
+            },
             t_max,
         };
         // The cached occluder first: a lane its exact test hits is occluded whatever the walk
@@ -1017,9 +1013,9 @@ impl KdAccel {
     }
 }
 
-/// The lanes of `live` whose original ray hits triangle `tri` with `0 < t < t_max`: the
-/// watertight test of [`WatertightRay::intersect`], operation for operation, on every lane at
-/// once; a lane with a zero edge function takes the scalar test (its `f64` fallback).
+/// The lanes of `live` whose original ray hits triangle `tri` with `0 < t < t_max`: the lane
+/// watertight test ([`WatertightLanes::hit`]); a lane on an edge takes the scalar test (its
+/// `f64` fallback).
 #[inline(always)]
 fn tri_hits<V: Wide>(
     ln: &Lanes<V>,
@@ -1031,49 +1027,12 @@ fn tri_hits<V: Wide>(
 ) -> u32 {
     let [p0, p1, p2] = tri;
     let (kx, ky, kz) = (k[0], k[1], k[2]);
-    let zero = V::splat(0.0);
-    // (No closures here: a closure is not compiled with the dispatcher's target features, so
-    // the lane operations inside it would not be inlined.)
-    let a = [
-        V::splat(p0[kx]).sub(ln.o[0]),
-        V::splat(p0[ky]).sub(ln.o[1]),
-        V::splat(p0[kz]).sub(ln.o[2]),
-    ];
-    let b = [
-        V::splat(p1[kx]).sub(ln.o[0]),
-        V::splat(p1[ky]).sub(ln.o[1]),
-        V::splat(p1[kz]).sub(ln.o[2]),
-    ];
-    let c = [
-        V::splat(p2[kx]).sub(ln.o[0]),
-        V::splat(p2[ky]).sub(ln.o[1]),
-        V::splat(p2[kz]).sub(ln.o[2]),
-    ];
-    let ax = a[0].sub(ln.sx.mul(a[2]));
-    let ay = a[1].sub(ln.sy.mul(a[2]));
-    let bx = b[0].sub(ln.sx.mul(b[2]));
-    let by = b[1].sub(ln.sy.mul(b[2]));
-    let cx = c[0].sub(ln.sx.mul(c[2]));
-    let cy = c[1].sub(ln.sy.mul(c[2]));
-    let u = cx.mul(by).sub(cy.mul(bx));
-    let v = ax.mul(cy).sub(ay.mul(cx));
-    let w = bx.mul(ay).sub(by.mul(ax));
-    let on_edge = V::or(V::or(V::eq(u, zero), V::eq(v, zero)), V::eq(w, zero));
-    let neg = V::or(V::or(V::lt(u, zero), V::lt(v, zero)), V::lt(w, zero));
-    let pos = V::or(V::or(V::gt(u, zero), V::gt(v, zero)), V::gt(w, zero));
-    let on_edge = V::bits(on_edge) & live;
-    let inside = !V::bits(V::and(neg, pos)) & live & !on_edge;
-    let mut hits = 0u32;
-    if inside != 0 {
-        let det = u.add(v).add(w);
-        let az = ln.sz.mul(a[2]);
-        let bz = ln.sz.mul(b[2]);
-        let cz = ln.sz.mul(c[2]);
-        let t = u.mul(az).add(v.mul(bz)).add(w.mul(cz)).div(det);
-        let ok = V::bits(V::and(V::gt(t, zero), V::lt(t, ln.t_max))) & !V::bits(V::eq(det, zero));
-        hits = ok & inside;
-    }
-    let mut z = on_edge;
+    let a = [p0[kx], p0[ky], p0[kz]];
+    let b = [p1[kx], p1[ky], p1[kz]];
+    let c = [p2[kx], p2[ky], p2[kz]];
+    let h = ln.tri.hit(&a, &b, &c, live, ln.t_max);
+    let mut hits = h.hit;
+    let mut z = h.edge;
     while z != 0 {
         let l = z.trailing_zeros() as usize;
         z &= z - 1;

@@ -51,7 +51,7 @@ use super::ray::Ray;
 use super::single::Entry;
 use super::visit::{Closest, Visitor};
 use crate::accel::kdtree::{MAX_DEPTH, TriHit};
-use crate::geometry::triangle::WatertightRay;
+use crate::geometry::triangle::{WatertightLanes, WatertightRay};
 use crate::simd::{Level, Wide, WideKernel, dispatch_wide, max_ps, min_ps};
 use rayon::prelude::*;
 
@@ -1275,7 +1275,7 @@ impl KdAccel {
 }
 
 /// One triangle (vertices `a`, `b`, `c` in the permuted axes) against the `V` lanes from `at`
-/// whose bits are in `live`: the watertight test's operations in the scalar order, each hit taken
+/// whose bits are in `live`: the lane watertight test ([`WatertightLanes::hit`]), each hit taken
 /// as `Closest::accept` would. Returns the bits of the lanes on an edge (`u`, `v` or `w` zero),
 /// which the caller retests.
 #[inline(always)]
@@ -1290,76 +1290,35 @@ fn hit_lanes<V: Wide>(
     id: u32,
 ) -> u32 {
     let [kx, ky, kz] = f.k;
-    let ox = V::load(&f.org[kx][at..]);
-    let oy = V::load(&f.org[ky][at..]);
-    let oz = V::load(&f.org[kz][at..]);
-    let sx = V::load(&f.sx[at..]);
-    let sy = V::load(&f.sy[at..]);
-    let sz = V::load(&f.sz[at..]);
-    let zero = V::splat(0.0);
-    // The 2D edge functions first; a group in which no live lane is inside the triangle or on
-    // an edge (most groups at most triangles) skips the distance and the hit updates.
-    let (a0, a1, a2) = (
-        V::splat(a[0]).sub(ox),
-        V::splat(a[1]).sub(oy),
-        V::splat(a[2]).sub(oz),
-    );
-    let (b0, b1, b2) = (
-        V::splat(b[0]).sub(ox),
-        V::splat(b[1]).sub(oy),
-        V::splat(b[2]).sub(oz),
-    );
-    let (c0, c1, c2) = (
-        V::splat(c[0]).sub(ox),
-        V::splat(c[1]).sub(oy),
-        V::splat(c[2]).sub(oz),
-    );
-    let ax = a0.sub(sx.mul(a2));
-    let ay = a1.sub(sy.mul(a2));
-    let bx = b0.sub(sx.mul(b2));
-    let by = b1.sub(sy.mul(b2));
-    let cx = c0.sub(sx.mul(c2));
-    let cy = c1.sub(sy.mul(c2));
-    let u = cx.mul(by).sub(cy.mul(bx));
-    let v = ax.mul(cy).sub(ay.mul(cx));
-    let w = bx.mul(ay).sub(by.mul(ax));
-    let on_edge = V::bits(V::or(V::or(V::eq(u, zero), V::eq(v, zero)), V::eq(w, zero)));
-    let neg = V::or(V::or(V::lt(u, zero), V::lt(v, zero)), V::lt(w, zero));
-    let pos = V::or(V::or(V::gt(u, zero), V::gt(v, zero)), V::gt(w, zero));
-    let mixed = V::bits(V::and(neg, pos));
-    let maybe = (on_edge | !mixed) & live;
-    if maybe == 0 {
-        return 0;
-    }
-    let inside = maybe & !on_edge & !mixed;
-    if inside != 0 {
-        let det = u.add(v).add(w);
-        let az = sz.mul(a2);
-        let bz = sz.mul(b2);
-        let cz = sz.mul(c2);
-        let t = u.mul(az).add(v.mul(bz)).add(w.mul(cz)).div(det);
-        let limit = V::load(&f.limit[at..]);
-        let ok = V::and(V::gt(t, zero), V::lt(t, limit));
-        let hit = inside & !V::bits(V::eq(det, zero)) & V::bits(ok);
-        if hit != 0 {
-            // A hit is better when it is closer, or (at equal `t`) of a lower index.
-            let closer = V::bits(V::lt(t, V::load(&f.best_t[at..])));
-            let mut ts = [0.0f32; 16];
-            t.store(&mut ts);
-            let mut m = hit;
-            while m != 0 {
-                let j = m.trailing_zeros() as usize;
-                m &= m - 1;
-                let k = at + j;
-                if closer >> j & 1 != 0 || id < f.best_tri[k] {
-                    let t = ts[j];
-                    (f.best_t[k], f.best_tri[k]) = (t, id);
-                    // `t` is positive and finite here: its successor is the next bit pattern.
-                    f.limit[k] = f32::from_bits(t.to_bits() + 1);
-                    f.cull[k] = t * HI;
-                }
+    let lanes = WatertightLanes {
+        o: [
+            V::load(&f.org[kx][at..]),
+            V::load(&f.org[ky][at..]),
+            V::load(&f.org[kz][at..]),
+        ],
+        sx: V::load(&f.sx[at..]),
+        sy: V::load(&f.sy[at..]),
+        sz: V::load(&f.sz[at..]),
+    };
+    let h = lanes.hit(a, b, c, live, V::load(&f.limit[at..]));
+    if h.hit != 0 {
+        // A hit is better when it is closer, or (at equal `t`) of a lower index.
+        let closer = V::bits(V::lt(h.t, V::load(&f.best_t[at..])));
+        let mut ts = [0.0f32; 16];
+        h.t.store(&mut ts);
+        let mut m = h.hit;
+        while m != 0 {
+            let j = m.trailing_zeros() as usize;
+            m &= m - 1;
+            let k = at + j;
+            if closer >> j & 1 != 0 || id < f.best_tri[k] {
+                let t = ts[j];
+                (f.best_t[k], f.best_tri[k]) = (t, id);
+                // `t` is positive and finite here: its successor is the next bit pattern.
+                f.limit[k] = f32::from_bits(t.to_bits() + 1);
+                f.cull[k] = t * HI;
             }
         }
     }
-    on_edge & maybe
+    h.edge
 }

@@ -1,12 +1,13 @@
 //! One triangle against the 4 rays of a packet ([`PacketTest`]), bit-identical to each lane's
-//! single-ray test: the watertight test on [`F32x4`] lanes, Möller–Trumbore lane by lane.
+//! single-ray test: the lane watertight test ([`WatertightLanes`]) on [`F32x4`] lanes,
+//! Möller–Trumbore lane by lane.
 //!
 //! Reads one triangle's vertices, the packet's prepared rays and per-lane `t_max`; writes the
 //! mask of lanes hit and their `t`.
 
 use super::LANES;
 use super::ray::Ray;
-use crate::geometry::triangle::{MollerTrumboreRay, TriangleRay, WatertightRay};
+use crate::geometry::triangle::{MollerTrumboreRay, TriangleRay, WatertightLanes, WatertightRay};
 use crate::simd::F32x4;
 
 /// A triangle test that can test one triangle against the 4 rays of a packet at once, with
@@ -66,15 +67,14 @@ impl PacketTest for MollerTrumboreRay {
     }
 }
 
-/// Watertight packet data: the shared axis permutation and the lanes' origin and shear in the
-/// permuted axes, or `None` when the live lanes' permutations differ (then lanes go one by one).
+/// Watertight packet data: the shared axis permutation and the lanes' test
+/// ([`WatertightLanes`]), or `None` when the live lanes' permutations differ (then lanes go one
+/// by one).
 pub(super) struct WatertightPre {
     /// Axes mapped to the sheared x, y, z (shared by the live lanes).
     k: [usize; 3],
-    /// Origin components on `k[0]`, `k[1]`, `k[2]`, per lane.
-    o: [F32x4; 3],
-    /// Shear `sx`, `sy`, `sz`, per lane.
-    s: [F32x4; 3],
+    /// The lanes' origins on `k` and shears.
+    lanes: WatertightLanes<F32x4>,
 }
 
 impl PacketTest for WatertightRay {
@@ -94,18 +94,22 @@ impl PacketTest for WatertightRay {
         };
         Some(WatertightPre {
             k,
-            o: [
-                lanes(&|r| r.origin[k[0]]),
-                lanes(&|r| r.origin[k[1]]),
-                lanes(&|r| r.origin[k[2]]),
-            ],
-            s: [lanes(&|r| r.sx), lanes(&|r| r.sy), lanes(&|r| r.sz)],
+            lanes: WatertightLanes {
+                o: [
+                    lanes(&|r| r.origin[k[0]]),
+                    lanes(&|r| r.origin[k[1]]),
+                    lanes(&|r| r.origin[k[2]]),
+                ],
+                sx: lanes(&|r| r.sx),
+                sy: lanes(&|r| r.sy),
+                sz: lanes(&|r| r.sz),
+            },
         })
     }
 
-    /// [`WatertightRay::intersect`] on 4 lanes with the same operations in the same order
-    /// (no fused multiply-add), so every lane's `t` is the scalar one; lanes on an edge
-    /// (`u`, `v` or `w` zero: the double-precision fallback) are retested with the scalar code.
+    /// The lane watertight test ([`WatertightLanes::hit`]) on the packet's 4 lanes; lanes on an
+    /// edge (`u`, `v` or `w` zero: the double-precision fallback) are retested with the scalar
+    /// code.
     #[inline(always)]
     fn hit4(
         pre: &Option<WatertightPre>,
@@ -119,40 +123,17 @@ impl PacketTest for WatertightRay {
         };
         let [p0, p1, p2] = verts;
         let [kx, ky, kz] = pre.k;
-        let rel = |p: &[f32; 3]| {
-            (
-                F32x4::splat(p[kx]) - pre.o[0],
-                F32x4::splat(p[ky]) - pre.o[1],
-                F32x4::splat(p[kz]) - pre.o[2],
-            )
-        };
-        let (a0, a1, a2) = rel(p0);
-        let (b0, b1, b2) = rel(p1);
-        let (c0, c1, c2) = rel(p2);
-        let [sx, sy, sz] = pre.s;
-        let ax = a0 - sx * a2;
-        let ay = a1 - sy * a2;
-        let bx = b0 - sx * b2;
-        let by = b1 - sy * b2;
-        let cx = c0 - sx * c2;
-        let cy = c1 - sy * c2;
-        let u = cx * by - cy * bx;
-        let v = ax * cy - ay * cx;
-        let w = bx * ay - by * ax;
-        let zero = F32x4::splat(0.0);
-        let edge = u.eq(zero) | v.eq(zero) | w.eq(zero);
-        let neg = u.lt(zero) | v.lt(zero) | w.lt(zero);
-        let pos = u.gt(zero) | v.gt(zero) | w.gt(zero);
-        let det = u + v + w;
-        let az = sz * a2;
-        let bz = sz * b2;
-        let cz = sz * c2;
-        let t = (u * az + v * bz + w * cz) / det;
-        let ok = det.ne(zero).and_not(neg & pos) & (t.gt(zero) & t.lt(F32x4::from_array(limits)));
-        let edge = edge.bits() & live;
-        let mut mask = ok.bits() & live & !edge;
-        let mut out = t.to_array();
-        let mut e = edge;
+        let perm = |p: &[f32; 3]| [p[kx], p[ky], p[kz]];
+        let h = pre.lanes.hit(
+            &perm(p0),
+            &perm(p1),
+            &perm(p2),
+            live as u32,
+            F32x4::from_array(limits),
+        );
+        let mut mask = h.hit as u8;
+        let mut out = h.t.to_array();
+        let mut e = h.edge;
         while e != 0 {
             let j = e.trailing_zeros() as usize;
             e &= e - 1;
