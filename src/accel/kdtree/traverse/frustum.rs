@@ -891,7 +891,10 @@ impl KdAccel {
                 slack[a].store(&mut f.slack[a][at..]);
                 let ta = root[0][a].sub(o[a]).mul(inv[a]);
                 let tb = root[1][a].sub(o[a]).mul(inv[a]);
-                let (near, far) = (min_num(ta, tb), max_num(ta, tb));
+                // As `Ray::clip`: a NaN distance leaves the axis unbounded.
+                let ok = V::and(V::eq(ta, ta), V::eq(tb, tb));
+                let near = V::select(ok, min_num(ta, tb), ninf);
+                let far = V::select(ok, max_num(ta, tb), inf);
                 t0 = max_num(t0, near.sub(slack[a]));
                 t1 = min_num(t1, far.add(slack[a]));
             }

@@ -243,6 +243,29 @@ impl KdAccel {
         counts
     }
 
+    /// Every ray through the 4-ray packet loop in groups of 4 consecutive rays, whatever their
+    /// direction signs (a batch query sends such groups elsewhere): closest hits into `out_t`,
+    /// `out_tri` (as [`KdAccel::intersect_closest_batch`]) and occlusion into `out_occ`. For
+    /// tests checking the packet loop against single rays; not part of the API. Panics if the
+    /// lengths differ.
+    #[doc(hidden)]
+    pub fn packets_forced(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out_t: &mut [f32],
+        out_tri: &mut [u32],
+        out_occ: &mut [bool],
+    ) {
+        let n = origins.len();
+        assert!(out_t.len() == n && out_tri.len() == n && out_occ.len() == n);
+        self.batch::<WatertightRay, Closest>(origins, dirs, t_max, true, |i, h| {
+            (out_t[i], out_tri[i]) = h.map_or((f32::INFINITY, u32::MAX), |h| (h.t, h.tri));
+        });
+        self.batch::<WatertightRay, Occluded>(origins, dirs, t_max, true, |i, o| out_occ[i] = o);
+    }
+
     /// One ray's query `V` with the triangle test chosen at run time.
     #[inline]
     fn query_with<V: visit::Visitor>(

@@ -48,8 +48,9 @@ impl<T: TriangleRay> Ray<T> {
         })
     }
 
-    /// Clips `[0, t_max]` to the root box grown by `δ`; `None` when the ray misses it. NaN slab
-    /// distances (origin on a face of a parallel ray) are ignored by `max`/`min`.
+    /// Clips `[0, t_max]` to the root box grown by `δ`; `None` when the ray misses it. A NaN
+    /// slab distance (the origin on a face of a parallel ray) leaves that axis unbounded (taking
+    /// the other face's distance, as `min`/`max` would, dropped a ray lying in the box's face).
     #[inline(always)]
     pub(super) fn clip(&self, bx: &Aabb, t_max: f32) -> Option<(f32, f32)> {
         let mut t0 = 0.0f32;
@@ -57,7 +58,13 @@ impl<T: TriangleRay> Ray<T> {
         for a in 0..3 {
             let ta = (bx.0[a] - self.origin[a]) * self.inv[a];
             let tb = (bx.1[a] - self.origin[a]) * self.inv[a];
-            let (near, far) = (ta.min(tb), ta.max(tb));
+            // A NaN distance (`0 · ∞`): a parallel ray lying in a face's plane, inside the
+            // closed slab along its whole line.
+            let (near, far) = if ta.is_nan() || tb.is_nan() {
+                (f32::NEG_INFINITY, f32::INFINITY)
+            } else {
+                (ta.min(tb), ta.max(tb))
+            };
             t0 = t0.max(near - self.slack[a]);
             t1 = t1.min(far + self.slack[a]);
         }
