@@ -257,6 +257,45 @@ const ROW_T_MAX: usize = 6;
 /// Rows per bundle.
 const ROWS: usize = 7;
 
+/// One thread's buffers for the occluded batch, reused by its every call (allocating and
+/// zeroing fresh ones per call showed as `memset` in the any-hit kernel's profile).
+#[derive(Default)]
+struct BatchScratch {
+    /// The batch's units.
+    preps: Vec<Prep>,
+    /// Each unit's group.
+    groups: Vec<u8>,
+    /// Rays traced alone.
+    fallback: Vec<u32>,
+    /// The bundles.
+    bundles: Vec<BundleInfo>,
+    /// Each bundle's units in the sorted order.
+    spans: Vec<u32>,
+    /// The bundles' lane rows (see [`ROW_O`]).
+    block: Vec<f32>,
+    /// Each bundle lane's ray.
+    lane_ray: Vec<u32>,
+    /// [`sort_by_direction`]'s buffers.
+    sort: SortScratch,
+}
+
+/// [`sort_by_direction`]'s buffers; `order` is its answer.
+#[derive(Default)]
+struct SortScratch {
+    /// Units per cell, then each cell's first slot.
+    counts: Vec<u32>,
+    /// Each unit's cell.
+    keys: Vec<u32>,
+    /// The units in cell order.
+    order: Vec<u32>,
+}
+
+thread_local! {
+    /// Each thread's [`BatchScratch`] (taken out while a batch runs).
+    static SCRATCH: std::cell::RefCell<Option<Box<BatchScratch>>> =
+        const { std::cell::RefCell::new(None) };
+}
+
 /// One bundle: its apex, shared axis permutation and number of rays.
 #[derive(Clone, Copy)]
 struct BundleInfo {
@@ -282,6 +321,29 @@ impl<C: Count> BatchKernel<'_, C> {
     /// Groups the batch and traces its bundles of `V::LANES` lanes.
     #[inline(always)]
     fn trace<V: Wide>(self) {
+        let mut scratch = SCRATCH.with_borrow_mut(Option::take).unwrap_or_default();
+        self.trace_in::<V>(&mut scratch);
+        SCRATCH.with_borrow_mut(|spare| *spare = Some(scratch));
+    }
+
+    /// [`BatchKernel::trace`] with this thread's reused buffers.
+    #[inline(always)]
+    fn trace_in<V: Wide>(self, scratch: &mut BatchScratch) {
+        let BatchScratch {
+            preps,
+            groups,
+            fallback,
+            bundles,
+            spans,
+            block,
+            lane_ray,
+            sort,
+        } = scratch;
+        preps.clear();
+        groups.clear();
+        fallback.clear();
+        bundles.clear();
+        spans.clear();
         let BatchKernel {
             accel,
             origins,
@@ -298,10 +360,7 @@ impl<C: Count> BatchKernel<'_, C> {
         let mut founders: Vec<f32> = Vec::with_capacity(MAX_APEXES);
         // Units of up to `UNIT` consecutive rays of one group (neighbours in the batch are
         // usually neighbours on screen), grouped and sorted as one.
-        let mut preps: Vec<Prep> = Vec::with_capacity(n / UNIT + 16);
         // Group of each unit: apex · 6 + face.
-        let mut groups: Vec<u8> = Vec::with_capacity(n / UNIT + 16);
-        let mut fallback: Vec<u32> = vec![];
         let mut bundled = 0usize;
         // The apex of the previous ray, tried first; the last ray put in a unit.
         let mut last = 0usize;
@@ -412,19 +471,18 @@ impl<C: Count> BatchKernel<'_, C> {
             return;
         }
         count.fallback(fallback.len() as u32);
-        for &i in &fallback {
+        for &i in fallback.iter() {
             let i = i as usize;
             out[i] = accel.intersect_occluded(origins[i], dirs[i], t_max[i]);
         }
-        let order = sort_by_direction(&preps, &groups, w);
+        sort_by_direction(preps, groups, w, sort);
+        let order = &sort.order;
         // Cut into bundles of whole units of one group and lay their lanes out,
         // structure-of-arrays: bundle `b`'s row `r`, lane `l` at `(b · ROWS + r) · LANES + l`
         // (lanes past a bundle's rays repeat its first ray and are masked off). Written once for
         // the batch, so each bundle's lane loads read memory written long before (no
         // store-forwarding stalls).
-        let mut bundles: Vec<BundleInfo> = Vec::with_capacity(bundled / w * 2 + 6 * MAX_APEXES);
         // Each bundle's units: `order[spans[b]..spans[b + 1]]`.
-        let mut spans: Vec<u32> = Vec::with_capacity(bundled / w * 2 + 6 * MAX_APEXES);
         let mut start = 0;
         while start < order.len() {
             let g = groups[order[start] as usize];
@@ -450,8 +508,13 @@ impl<C: Count> BatchKernel<'_, C> {
             start = end;
         }
         spans.push(order.len() as u32);
-        let mut block = vec![0.0f32; bundles.len() * ROWS * w];
-        let mut lane_ray = vec![0u32; bundles.len() * w];
+        // (Every element is written below before it is read: grown, never cleared.)
+        if block.len() < bundles.len() * ROWS * w {
+            block.resize(bundles.len() * ROWS * w, 0.0);
+        }
+        if lane_ray.len() < bundles.len() * w {
+            lane_ray.resize(bundles.len() * w, 0);
+        }
         for b in 0..bundles.len() {
             // The bundle's rays, unit after unit, then its first ray again in the spare lanes.
             let ids = &mut lane_ray[b * w..(b + 1) * w];
@@ -584,12 +647,12 @@ struct Rays<'a> {
     t_max: &'a [f32],
 }
 
-/// The order to bundle `preps` in: by group, then along a Morton curve of the direction's shear
+/// The order to bundle `preps` in (into `sort.order`): by group, then along a Morton curve of the direction's shear
 /// (`d[kx]`, `d[ky]`) on a grid over the group's range with about `w / 8` rays per cell, its
 /// cells as square as whole powers of two allow (Morton order within squares, the squares in a
 /// row along the longer axis; a stable counting sort, so equal cells keep the batch's order).
 #[inline(always)]
-fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
+fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize, sort: &mut SortScratch) {
     const GROUPS: usize = MAX_APEXES * 6;
     let mut lo = [[f32::INFINITY; 2]; GROUPS];
     let mut hi = [[f32::NEG_INFINITY; 2]; GROUPS];
@@ -647,25 +710,33 @@ fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize) -> Vec<u32> {
         let high = (cx >> m) | (cy >> m);
         base[g] + ((high << (2 * m)) | low) as usize
     };
-    let mut counts = vec![0u32; base[GROUPS] + 1];
-    let keys: Vec<u32> = preps
-        .iter()
-        .zip(groups)
-        .map(|(p, &g)| key(p, g as usize) as u32)
-        .collect();
-    for &k in &keys {
+    let SortScratch {
+        counts,
+        keys,
+        order,
+    } = sort;
+    counts.clear();
+    counts.resize(base[GROUPS] + 1, 0);
+    keys.clear();
+    keys.extend(
+        preps
+            .iter()
+            .zip(groups)
+            .map(|(p, &g)| key(p, g as usize) as u32),
+    );
+    for &k in keys.iter() {
         counts[k as usize + 1] += 1;
     }
     for c in 1..counts.len() {
         counts[c] += counts[c - 1];
     }
-    let mut order = vec![0u32; preps.len()];
+    // (Every slot is written: the counts are a permutation of `0..preps.len()`.)
+    order.resize(preps.len(), 0);
     for (i, &k) in keys.iter().enumerate() {
         let slot = &mut counts[k as usize];
         order[*slot as usize] = i as u32;
         *slot += 1;
     }
-    order
 }
 
 /// Interleaves the low 16 bits of `x` and `y` (`x` in the even bits).
