@@ -58,6 +58,7 @@ use glam::Vec3;
 
 use super::KdAccel;
 use super::interval::{DELTA, HI};
+use super::route::{self, Loop};
 use super::visit::Occluded;
 use crate::accel::kdtree::MAX_DEPTH;
 use crate::geometry::triangle::{WatertightLanes, WatertightRay};
@@ -72,8 +73,6 @@ const APEX_TOL: f32 = 1.0 / (1 << 16) as f32;
 /// Relative bound used for every rounding this module accounts for in a lane's slack (`F`,
 /// `o − A`): 2⁻²⁰, sixteen times the unit roundoff.
 const ROUND: f32 = 1.0 / (1 << 20) as f32;
-/// Batches with fewer bundle-able rays than this go through the packet path as a whole.
-const MIN_BUNDLED: usize = 32;
 
 /// Most consecutive rays of a batch grouped and sorted as one unit.
 const UNIT: usize = 4;
@@ -464,7 +463,7 @@ impl<C: Count> BatchKernel<'_, C> {
             }
             next = end;
         }
-        if bundled < MIN_BUNDLED {
+        if route::occluded_batch(bundled) == Loop::Packet {
             // Too few to bundle: the packet path for the whole batch.
             count.fallback(n as u32);
             accel.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| out[i] = o);

@@ -14,7 +14,7 @@
 //! of [`WIDE`] consecutive rays become one frustum. Rays whose direction the watertight test
 //! rejects go one by one. A batch from many origins (mirror reflections: the rays of a screen
 //! tile reflected by one plane leave from a small patch of it) goes the same way while its
-//! frusta's origins stay close together ([`MAX_SPREAD`], measured over the batch's first two
+//! frusta's origins stay close together ([`MAX_SPREAD`](super::route::MAX_SPREAD), measured over the batch's first two
 //! frusta); otherwise the caller traces it as 4-ray packets. On several threads
 //! ([`KdAccel::closest_frusta_par`]) the batch is regrouped in pieces of the intersect stage's
 //! chunk size (the tiles a one-thread render traces), the frusta go to the threads a few at a
@@ -29,7 +29,7 @@
 //! [`WIDE`] rays and no lane work. Elsewhere every lane takes exactly the single-ray step
 //! ([`super::interval::step`] over the `V` lanes), visits its
 //! leaves in the single ray's order and culls with its own best hit, so answers are bit-identical
-//! to [`KdAccel::intersect_closest`]. Where at most [`SOLO`] lanes are left, they go on one by
+//! to [`KdAccel::intersect_closest`]. Where at most [`SOLO`](super::route::SOLO) lanes are left, they go on one by
 //! one through the single-ray loop from their own intervals and best hits. Lanes agree on the
 //! near child (the origin's side) unless their origins lie on both sides of the plane (or on it,
 //! with opposite direction signs); there each lane's children are oriented left/right and the
@@ -48,6 +48,7 @@ use glam::Vec3;
 use super::KdAccel;
 use super::interval::{DELTA, HI, step};
 use super::ray::Ray;
+use super::route::{self, Loop, Origins};
 use super::single::Entry;
 use super::visit::{Closest, Visitor};
 use crate::accel::kdtree::{MAX_DEPTH, TriHit};
@@ -57,18 +58,6 @@ use rayon::prelude::*;
 
 /// Rays per frustum: an 8 × 8 pixel tile at one sample per pixel.
 pub(super) const WIDE: usize = 64;
-
-/// Live lanes at or below which a frustum's lanes go on one by one through the single-ray loop
-/// (measured on Sibenik's mirror reflections: 1, 2 and 4 within the noise, 2 a little ahead,
-/// 8 slower; about 13 % faster than never).
-const SOLO: u32 = 2;
-
-/// Largest mean spread of a frustum's origins (L∞ extent of their box, relative to the root
-/// box's largest side) for which rays from many origins stay frusta: reflections off a mirror
-/// measured 0.026 on Sibenik (a screen tile's footprint on the mirror), rays reflected about
-/// per-pixel normals 0.13 (a tile of similar directions gathers origins from the whole batch),
-/// and frusta of those ran at 0.4× the 4-ray packets.
-const MAX_SPREAD: f32 = 1.0 / 16.0;
 
 /// Stack entries of a frustum: one per tree level.
 const STACK: usize = MAX_DEPTH + 1;
@@ -464,7 +453,7 @@ fn run_end(key: &[u32], order: &[u32], offset: usize, i: usize) -> usize {
 impl KdAccel {
     /// Closest hits of a batch traced as frusta (see the module docs); `G` lanes per SIMD step.
     /// Returns false, having written nothing, when the batch is too small to be worth
-    /// regrouping or its rays come from many origins too far apart ([`KdAccel::too_spread`]).
+    /// regrouping or its rays come from many origins too far apart ([`KdAccel::origins_of`], [`route::closest_by_origins`]).
     #[inline(always)]
     pub(super) fn closest_frusta<V: Wide>(
         &self,
@@ -476,7 +465,7 @@ impl KdAccel {
         scratch: &mut FrustumScratch,
     ) -> bool {
         let n = origins.len();
-        if n < 2 * WIDE {
+        if route::closest_by_size(n) != Loop::Frustum {
             return false;
         }
         let shared = shared_origin(origins);
@@ -491,7 +480,9 @@ impl KdAccel {
         } = scratch;
         // `order` lists the rays permutation by permutation (invalid rays last), tile by tile.
         let order = &order[..n];
-        if !shared {
+        let lie = if shared {
+            Origins::Shared
+        } else {
             let mut i = 0;
             let runs = std::iter::from_fn(|| {
                 (i < n).then(|| {
@@ -501,9 +492,10 @@ impl KdAccel {
                     rows
                 })
             });
-            if self.too_spread(origins, key, runs) {
-                return false;
-            }
+            self.origins_of(origins, key, runs)
+        };
+        if route::closest_by_origins(lie) != Loop::Frustum {
+            return false;
         }
         let mut i = 0;
         while i < n {
@@ -546,7 +538,7 @@ impl KdAccel {
         scratch: &mut FrustumScratch,
     ) -> bool {
         let n = origins.len();
-        if n < 2 * WIDE {
+        if route::closest_by_size(n) != Loop::Frustum {
             return false;
         }
         let shared = shared_origin(origins);
@@ -613,7 +605,12 @@ impl KdAccel {
         let rows_of = runs
             .windows(2)
             .map(|w| &order[w[0] as usize..w[1] as usize]);
-        if !shared && self.too_spread(origins, key, rows_of) {
+        let lie = if shared {
+            Origins::Shared
+        } else {
+            self.origins_of(origins, key, rows_of)
+        };
+        if route::closest_by_origins(lie) != Loop::Frustum {
             return false;
         }
         let mut items = Vec::new();
@@ -645,31 +642,35 @@ impl KdAccel {
         true
     }
 
-    /// Whether a batch from many origins is too incoherent for frusta (both entry points decide
-    /// with it, before tracing): the origins of its first two frusta (`runs`: the rays of each
-    /// run in tracing order; runs of rays the watertight test rejects do not count) spread more
-    /// than [`MAX_SPREAD`] on average, and more runs follow them. The caller then traces the
-    /// batch as 4-ray packets (the answers are the same either way).
-    fn too_spread<'r>(
+    /// How the origins of a batch from many origins lie, for the routing table
+    /// ([`route::closest_by_origins`]; both entry points ask before tracing): the summed spread
+    /// of its first two frusta's origins (`runs`: the rays of each run in tracing order; runs of
+    /// rays the watertight test rejects do not count), or [`Origins::Few`] when no more runs
+    /// follow them.
+    fn origins_of<'r>(
         &self,
         origins: &[Vec3],
         key: &[u32],
         mut runs: impl Iterator<Item = &'r [u32]>,
-    ) -> bool {
+    ) -> Origins {
         let (mut frusta, mut spread) = (0, 0.0);
         while frusta < 2 {
             let Some(rows) = runs.next() else {
-                return false;
+                return Origins::Few;
             };
             if key[rows[0] as usize] >> 24 < 6 {
                 frusta += 1;
                 spread += self.origin_spread(origins, rows);
             }
         }
-        runs.next().is_some() && spread > 2.0 * MAX_SPREAD
+        if runs.next().is_some() {
+            Origins::Spread(spread)
+        } else {
+            Origins::Few
+        }
     }
 
-    /// The spread of the finite origins of the rays `rows` ([`MAX_SPREAD`]): the L∞ extent of
+    /// The spread of the finite origins of the rays `rows` ([`MAX_SPREAD`](super::route::MAX_SPREAD)): the L∞ extent of
     /// their box relative to the root box's largest side.
     fn origin_spread(&self, origins: &[Vec3], rows: &[u32]) -> f32 {
         let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
@@ -973,7 +974,7 @@ impl KdAccel {
             // Descend to a leaf.
             let leaf = loop {
                 // Few lanes left: on one by one (the frustum's per-node work no longer pays).
-                if e.mask.count_ones() <= SOLO {
+                if route::frustum_lanes(e.mask.count_ones()) == Loop::Single {
                     self.solo_lanes(f, &e);
                     break None;
                 }

@@ -11,20 +11,14 @@
 //! - `visit`: the closest and occluded modes (leaf visit, culling, answer);
 //! - `single`: the single-ray loop; `packet`: the 4-ray packet loop and the batch driver;
 //!   `hit4`: one triangle against a packet's 4 rays;
+//! - `route`: the routing table (which loop a batch, or a part of it, takes);
 //! - `frustum`: 64-ray frusta for closest-hit batches; `bundle`: light-rooted shadow bundles
 //!   for occluded batches (both over [`crate::simd`]'s `Wide` lanes: 16 with AVX-512, 8
 //!   otherwise; a bundle is two of them, 32 or 16 rays);
 //! - [`crate::simd`]: the SIMD lanes and dispatch (the crate's one `unsafe` module).
 //!
-//! **Which loop a query takes** (every path gives the single-ray answer, bit for bit):
-//!
-//! | query | rays | loop |
-//! |---|---|---|
-//! | [`KdAccel::intersect_closest`], [`KdAccel::intersect_occluded`] | one | `single` |
-//! | [`KdAccel::intersect_closest_batch`] | ≥ 128, origins within `frustum::MAX_SPREAD` (camera rays, mirror reflections) | `frustum` per 64-ray screen tile; a rejected direction, and a frustum's last ≤ `SOLO` live lanes, `single` |
-//! | [`KdAccel::intersect_closest_batch`] | fewer, or origins spread | `packet` per 4 consecutive rays of equal direction signs, else `single` |
-//! | [`KdAccel::intersect_occluded_batch`] | ≥ `MIN_BUNDLED` ending at up to `MAX_APEXES` shared points (shadow rays to point lights) | `bundle`; rays ending elsewhere `single` |
-//! | [`KdAccel::intersect_occluded_batch`] | fewer | `packet`, else `single` |
+//! **Which loop a query takes**: the routing table, `route` (one function per decision, its
+//! thresholds beside it, tested). Every loop gives the single-ray answer, bit for bit.
 //!
 //! Traversal is front-to-back and stack-based (fixed array, no allocation per ray), generic over
 //! the query mode and the triangle test
@@ -61,6 +55,7 @@ mod hit4;
 mod interval;
 mod packet;
 mod ray;
+mod route;
 mod single;
 mod visit;
 
@@ -77,7 +72,7 @@ pub use bundle::BundleCounts;
 use visit::{Closest, Occluded};
 
 /// Rays per packet.
-const LANES: usize = 4;
+const LANES: usize = route::PACKET;
 
 /// A [`KdTree`] made ready to trace against the mesh it was built over: the tree, its
 /// triangles' vertices copied in leaf order and the exact root box. Built once, explicitly, by
@@ -244,7 +239,8 @@ impl KdAccel {
     }
 
     /// Every ray through the 4-ray packet loop in groups of 4 consecutive rays, whatever their
-    /// direction signs (a batch query sends such groups elsewhere): closest hits into `out_t`,
+    /// direction signs (the routing table's `group` decision overridden; a batch query sends
+    /// such groups elsewhere): closest hits into `out_t`,
     /// `out_tri` (as [`KdAccel::intersect_closest_batch`]) and occlusion into `out_occ`. For
     /// tests checking the packet loop against single rays; not part of the API. Panics if the
     /// lengths differ.

@@ -14,6 +14,7 @@ use glam::Vec3;
 use super::hit4::PacketTest;
 use super::interval::step;
 use super::ray::Ray;
+use super::route::{self, Loop};
 use super::visit::Visitor;
 use super::{KdAccel, LANES};
 use crate::accel::kdtree::MAX_DEPTH;
@@ -97,7 +98,7 @@ impl KdAccel {
         let mut stack = [PacketEntry::default(); STACK];
         let mut i = 0;
         while i < n {
-            if i + LANES <= n && (force || same_signs(&dirs[i..i + LANES])) {
+            if route::group(n - i, || same_signs(&dirs[i..i + LANES]), force) == Loop::Packet {
                 let r = i..i + LANES;
                 let answers = self.packet::<T, V>(
                     &origins[r.clone()],
