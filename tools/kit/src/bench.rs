@@ -433,7 +433,7 @@ pub struct Report {
 /// One traversal variant's work on the snapshot's depth-0 shadow rays.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VariantWork {
-    /// Variant label (`bundle`, `single`).
+    /// Variant label (`bundle`, `packet`, `single`).
     pub variant: String,
     /// Rays traced.
     pub rays: u64,
@@ -444,9 +444,9 @@ pub struct VariantWork {
 }
 
 /// Times the depth-0 shadow rays `q` through the light-rooted bundles (in chunks of
-/// [`wavefront::accel::kdtree::KdAccel::OCCLUDED_BATCH`], as the shadow stage) and through the
-/// single-ray walk, on the current pool, and counts the bundles' work (one more, counted run at
-/// the CPU's SIMD level).
+/// [`wavefront::accel::kdtree::KdAccel::OCCLUDED_BATCH`], as the shadow stage), through 4-ray
+/// packets (the same chunks) and through the single-ray walk, on the current pool, and counts
+/// the bundles' work (one more, counted run at the CPU's SIMD level).
 fn shadow_variants(
     tris: &wavefront::world::Triangles,
     q: &ShadowQueue,
@@ -490,6 +490,17 @@ fn shadow_variants(
             out,
         ));
     }
+    let packet = best(&mut || {
+        out.par_chunks_mut(chunk).enumerate().for_each(|(c, out)| {
+            let r = c * chunk..c * chunk + out.len();
+            accel.occluded_packets(
+                &q.origin()[r.clone()],
+                &q.direction()[r.clone()],
+                &q.t_max()[r],
+                out,
+            );
+        })
+    });
     let single = best(&mut || {
         out.par_iter_mut().enumerate().for_each(|(i, o)| {
             *o = accel.intersect_occluded(q.origin()[i], q.direction()[i], q.t_max()[i]);
@@ -501,6 +512,12 @@ fn shadow_variants(
             rays: n as u64,
             counts: Some(counts),
             seconds: bundle,
+        },
+        VariantWork {
+            variant: "packet".into(),
+            rays: n as u64,
+            counts: None,
+            seconds: packet,
         },
         VariantWork {
             variant: "single".into(),

@@ -646,10 +646,11 @@ struct Rays<'a> {
     t_max: &'a [f32],
 }
 
-/// The order to bundle `preps` in (into `sort.order`): by group, then along a Morton curve of the direction's shear
-/// (`d[kx]`, `d[ky]`) on a grid over the group's range with about `w / 8` rays per cell, its
-/// cells as square as whole powers of two allow (Morton order within squares, the squares in a
-/// row along the longer axis; a stable counting sort, so equal cells keep the batch's order).
+/// The order to bundle `preps` in, into `sort.order`: by group, then along a Morton curve of the
+/// direction's shear (`d[kx]`, `d[ky]`) on a grid over the group's range with about `w / 8` rays
+/// per cell, its cells as square as whole powers of two allow (Morton order within squares, the
+/// squares in a row along the longer axis; a stable counting sort, so equal cells keep the
+/// batch's order).
 #[inline(always)]
 fn sort_by_direction(preps: &[Prep], groups: &[u8], w: usize, sort: &mut SortScratch) {
     const GROUPS: usize = MAX_APEXES * 6;

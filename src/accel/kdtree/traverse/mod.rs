@@ -262,6 +262,22 @@ impl KdAccel {
         self.batch::<WatertightRay, Occluded>(origins, dirs, t_max, true, |i, o| out_occ[i] = o);
     }
 
+    /// [`KdAccel::intersect_occluded`] for many rays through the 4-ray packet loop, as the
+    /// routing table sends an occluded batch with too few rays toward shared points (groups of
+    /// 4 with equal direction signs as packets, others one by one): for benchmarks comparing the
+    /// variants; not part of the API. Panics if the lengths differ.
+    #[doc(hidden)]
+    pub fn occluded_packets(
+        &self,
+        origins: &[Vec3],
+        dirs: &[Vec3],
+        t_max: &[f32],
+        out: &mut [bool],
+    ) {
+        assert!(out.len() == origins.len());
+        self.batch::<WatertightRay, Occluded>(origins, dirs, t_max, false, |i, o| out[i] = o);
+    }
+
     /// One ray's query `V` with the triangle test chosen at run time.
     #[inline]
     fn query_with<V: visit::Visitor>(
