@@ -256,10 +256,10 @@ pub(crate) fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHit
             if settings.shadows {
                 // Ambient only (the lights come through shadow rays): `shade_hit`'s operations
                 // on the row's material, without building its `Surface`.
-                let weight = &weight[r.clone()];
-                for (k, e) in emitted.iter_mut().enumerate() {
-                    let (keep, ambient) = ambient_terms[material[k] as usize];
-                    *e = (weight[k] * keep) * ambient;
+                let rows = emitted.iter_mut().zip(&*material).zip(&weight[r.clone()]);
+                for ((e, &m), &w) in rows {
+                    let (keep, ambient) = ambient_terms[m as usize];
+                    *e = (w * keep) * ambient;
                 }
                 return;
             }
