@@ -25,11 +25,10 @@ use crate::arith;
 use crate::geometry::offset::gamma;
 use crate::geometry::offset::shadow_t_max;
 use crate::queue::compact::compact;
-use crate::queue::lanes::{load3, store3};
 use crate::queue::pass::{MAX_SHADOW_ROWS, ShadowPass};
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, Resize, SampleSlot, Samples, ShadowQueue};
 use crate::scene::{Material, ShadeSettings};
-use crate::simd::{Kernel, Level, dispatch};
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
 use crate::world::frame::{Emission, Light};
 use crate::world::{Surface, SurfaceOut, World};
 
@@ -257,10 +256,10 @@ pub(crate) fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHit
             if settings.shadows {
                 // Ambient only (the lights come through shadow rays): `shade_hit`'s operations
                 // on the row's material, without building its `Surface`.
-                let weight = &weight[r.clone()];
-                for (k, e) in emitted.iter_mut().enumerate() {
-                    let (keep, ambient) = ambient_terms[material[k] as usize];
-                    *e = (weight[k] * keep) * ambient;
+                let rows = emitted.iter_mut().zip(&*material).zip(&weight[r.clone()]);
+                for ((e, &m), &w) in rows {
+                    let (keep, ambient) = ambient_terms[m as usize];
+                    *e = (w * keep) * ambient;
                 }
                 return;
             }
@@ -278,60 +277,86 @@ pub(crate) fn shade_hits(world: &World, settings: &ShadeSettings, hits: ShadeHit
         });
 }
 
-/// Hits per lane group of the shadow-ray kernels.
-const LANES: usize = 8;
+/// Most lanes of a [`Wide`] type the shadow-ray kernels meet (stack buffers are this long).
+const MAX_LANES: usize = 32;
 
-/// `x^p` lane by lane, bit for bit [`arith::pow`]: when every lane has the same integer exponent
-/// (one material, as neighbouring samples mostly have) square-and-multiply runs across the lanes
-/// at once, from the exponent's highest bit; other lanes take [`arith::pow`] one by one. Lanes
-/// whose power is not used (no specular, facing away, NaN) may hold any value.
+/// `x.max(0.0)` on lanes as x86-64 computes `f32::max(x, 0.0)`: `0 > x ? 0 : x`, and 0 for NaN
+/// (what LLVM emits for `maxnum`, `maxss(0, x)` then a NaN select).
 #[inline(always)]
-fn specular_power(x: &[f32; LANES], p: &[f32; LANES]) -> [f32; LANES] {
+fn max0<V: Wide>(x: V) -> V {
+    let zero = V::splat(0.0);
+    V::select(V::eq(x, x), zero.max(x), zero)
+}
+
+/// `x^p` lane by lane, bit for bit [`arith::pow`] (`p`: one exponent per lane): when every lane
+/// has the same integer exponent (one material, as neighbouring samples mostly have)
+/// square-and-multiply runs across the lanes at once, from the exponent's highest bit; other
+/// lanes take [`arith::pow`] one by one. Lanes whose power is not used (no specular, facing
+/// away, NaN) may hold any value.
+#[inline(always)]
+fn specular_power<V: Wide>(x: V, p: &[f32]) -> V {
+    let p = &p[..V::LANES];
     let shared = p.iter().all(|&q| q.to_bits() == p[0].to_bits());
     match arith::integer_exponent(p[0]) {
         Some(n) if shared => {
-            let mut r = [1.0f32; LANES];
+            let mut r = V::splat(1.0);
             let mut bit = match n {
                 0 => 0,
                 n => 1u32 << (31 - n.leading_zeros()),
             };
             while bit != 0 {
-                for l in 0..LANES {
-                    r[l] *= r[l];
-                }
+                r = r.mul(r);
                 if n & bit != 0 {
-                    for l in 0..LANES {
-                        r[l] *= x[l];
-                    }
+                    r = r.mul(x);
                 }
                 bit >>= 1;
             }
             r
         }
-        _ => std::array::from_fn(|l| arith::pow(x[l], p[l])),
+        _ => {
+            let mut xs = [0.0f32; MAX_LANES];
+            x.store(&mut xs);
+            for (v, &q) in xs.iter_mut().zip(p) {
+                *v = arith::pow(*v, q);
+            }
+            V::load(&xs)
+        }
     }
 }
 
-/// 8 hits of the shaded queue in lanes: what `shadow_radiance` and `shadow_ray` read.
-struct HitLanes {
-    p: [[f32; LANES]; 3],
-    n: [[f32; LANES]; 3],
-    d: [[f32; LANES]; 3],
-    w: [[f32; LANES]; 3],
-    kd: [[f32; LANES]; 3],
-    ks: [[f32; LANES]; 3],
-    exponent: [f32; LANES],
-    alpha: [f32; LANES],
-    spec: [bool; LANES],
-    /// The shading normal differs from the geometric one (vertex normals): computed by the
-    /// scalar `shadow_radiance` instead.
-    smooth: [bool; LANES],
+/// `v` in every lane, per component. (Helpers rather than closures: a closure's body, e.g.
+/// through `array::map`, may stay out of line and so not be compiled for the kernel's level.)
+#[inline(always)]
+fn splat3<V: Wide>(v: Vec3) -> [V; 3] {
+    [V::splat(v.x), V::splat(v.y), V::splat(v.z)]
 }
 
-impl HitLanes {
-    /// Hits `rows` (at most [`LANES`]).
+/// Column `c`'s `rows` (exactly `V::LANES`) as x, y and z lanes.
+#[inline(always)]
+fn col3<V: Wide>(c: &[Vec3], rows: &Range<usize>) -> [V; 3] {
+    V::load3(bytemuck::cast_slice(&c[rows.clone()]))
+}
+
+/// `V::LANES` hits of the shaded queue on lanes: what `shadow_radiance` reads.
+struct HitLanes<V: Wide> {
+    p: [V; 3],
+    n: [V; 3],
+    d: [V; 3],
+    w: [V; 3],
+    kd: [V; 3],
+    ks: [V; 3],
+    exponent: [f32; MAX_LANES],
+    alpha: V,
+    spec: V::Mask,
+    /// Bit `l`: the shading normal of lane `l` differs from the geometric one (vertex
+    /// normals): computed by the scalar `shadow_radiance` instead.
+    smooth: u32,
+}
+
+impl<V: Wide> HitLanes<V> {
+    /// Hits `rows` (exactly `V::LANES`).
     /// `meshes`: the world has triangles, whose shading normals may differ from the geometric
-    /// ones (analytic hits' never do: their `smooth` lanes are false without reading `shading`).
+    /// ones (analytic hits' never do: their `smooth` bits are clear without reading `shading`).
     #[inline(always)]
     fn load(
         hits: &ShadedHits<'_>,
@@ -340,159 +365,148 @@ impl HitLanes {
         meshes: bool,
         rows: Range<usize>,
     ) -> Self {
-        let mut x = HitLanes {
-            p: load3(&hits.point[rows.clone()]),
-            n: load3(&hits.normal[rows.clone()]),
-            d: load3(&hits.direction[rows.clone()]),
-            w: load3(&hits.weight[rows.clone()]),
-            kd: [[0.0; LANES]; 3],
-            ks: [[0.0; LANES]; 3],
-            exponent: [0.0; LANES],
-            alpha: [0.0; LANES],
-            spec: [false; LANES],
-            smooth: [false; LANES],
-        };
         let ids = &hits.material[rows.clone()];
-        if ids.len() == LANES && ids.iter().all(|&m| m == ids[0]) {
-            // One material in every lane (neighbouring samples mostly are): splats, read back as
-            // vectors without store-forwarding stalls.
+        let (kd, ks, exponent, alpha, spec) = if ids.iter().all(|&m| m == ids[0]) {
+            // One material in every lane (neighbouring samples mostly are): splats.
             let m = &materials[ids[0] as usize];
-            x.kd = m.kd.to_array().map(|v| [v; LANES]);
-            x.ks = m.ks.to_array().map(|v| [v; LANES]);
-            (x.exponent, x.alpha) = ([m.p; LANES], [m.alpha; LANES]);
-            x.spec = [specular && m.has_specular(); LANES];
+            let spec = f32::from(u8::from(specular && m.has_specular()));
+            (
+                splat3(m.kd),
+                splat3(m.ks),
+                [m.p; MAX_LANES],
+                V::splat(m.alpha),
+                V::splat(spec),
+            )
         } else {
-            for (l, h) in rows.clone().enumerate() {
-                let m = &materials[hits.material[h] as usize];
+            // kd, ks, alpha and specular (1 or 0) per lane.
+            let mut a = [[0.0f32; MAX_LANES]; 8];
+            let mut e = [0.0f32; MAX_LANES];
+            for (l, &id) in ids.iter().enumerate() {
+                let m = &materials[id as usize];
                 for k in 0..3 {
-                    x.kd[k][l] = m.kd[k];
-                    x.ks[k][l] = m.ks[k];
+                    a[k][l] = m.kd[k];
+                    a[3 + k][l] = m.ks[k];
                 }
-                (x.exponent[l], x.alpha[l]) = (m.p, m.alpha);
-                x.spec[l] = specular && m.has_specular();
+                (e[l], a[6][l]) = (m.p, m.alpha);
+                a[7][l] = f32::from(u8::from(specular && m.has_specular()));
             }
+            (
+                [V::load(&a[0]), V::load(&a[1]), V::load(&a[2])],
+                [V::load(&a[3]), V::load(&a[4]), V::load(&a[5])],
+                e,
+                V::load(&a[6]),
+                V::load(&a[7]),
+            )
+        };
+        let n = col3(hits.normal, &rows);
+        let mut smooth = 0;
+        if meshes {
+            let s: [V; 3] = col3(hits.shading, &rows);
+            let same = V::and(V::and(s[0].eq(n[0]), s[1].eq(n[1])), s[2].eq(n[2]));
+            smooth = !V::bits(same) & (u32::MAX >> (32 - V::LANES));
         }
-        if !meshes {
-            return x;
+        HitLanes {
+            p: col3(hits.point, &rows),
+            n,
+            d: col3(hits.direction, &rows),
+            w: col3(hits.weight, &rows),
+            kd,
+            ks,
+            exponent,
+            alpha,
+            spec: V::gt(spec, V::splat(0.5)),
+            smooth,
         }
-        let shading: [[f32; LANES]; 3] = load3(&hits.shading[rows]);
-        for l in 0..LANES {
-            let same = (shading[0][l] == x.n[0][l])
-                & (shading[1][l] == x.n[1][l])
-                & (shading[2][l] == x.n[2][l]);
-            x.smooth[l] = !same;
-        }
-        x
     }
 
-    /// [`Light::toward`] from the 8 hits, lane by lane in its operations' order: `l`, the
+    /// [`Light::toward`] from the hits, lane by lane in its operations' order: `l`, the
     /// distance, and whether the light gives anything.
     #[inline(always)]
-    fn toward(&self, light: &Light) -> ([[f32; LANES]; 3], [f32; LANES], [bool; LANES]) {
+    fn toward(&self, light: &Light) -> ([V; 3], V, V::Mask) {
         if let Emission::Directional { to_light } = light.emission {
-            let l = to_light.to_array().map(|c| [c; LANES]);
-            return (l, [f32::INFINITY; LANES], [true; LANES]);
+            let all = V::le(V::splat(0.0), V::splat(1.0));
+            return (splat3(to_light), V::splat(f32::INFINITY), all);
         }
-        let lp = light.position;
-        let mut l_dir = [[0.0f32; LANES]; 3];
-        let mut dist = [0.0f32; LANES];
-        let mut valid = [false; LANES];
-        for l in 0..LANES {
-            let to = [
-                lp.x - self.p[0][l],
-                lp.y - self.p[1][l],
-                lp.z - self.p[2][l],
-            ];
-            dist[l] = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
-            valid[l] = (dist[l] > 0.0) & dist[l].is_finite();
-            for k in 0..3 {
-                l_dir[k][l] = to[k] / dist[l];
-            }
-        }
-        (l_dir, dist, valid)
+        let lp: [V; 3] = splat3(light.position);
+        let to = [
+            lp[0].sub(self.p[0]),
+            lp[1].sub(self.p[1]),
+            lp[2].sub(self.p[2]),
+        ];
+        let dist = to[0]
+            .mul(to[0])
+            .add(to[1].mul(to[1]))
+            .add(to[2].mul(to[2]))
+            .sqrt();
+        let valid = V::and(dist.gt(V::splat(0.0)), dist.lt(V::splat(f32::INFINITY)));
+        let u = [to[0].div(dist), to[1].div(dist), to[2].div(dist)];
+        (u, dist, valid)
     }
 
-    /// [`shadow_radiance`] of the 8 hits toward `light`, lane by lane in its operations' order
+    /// [`shadow_radiance`] of the hits toward `light`, lane by lane in its operations' order
     /// (the specular power as [`arith::pow`] gives it: [`specular_power`]; the attenuation from
     /// [`Light::attenuation`] itself), and a bit per lane whose value is non-zero.
     #[inline(always)]
-    fn radiance(&self, light: &Light) -> ([[f32; LANES]; 3], u32) {
-        let (l_dir, dist, valid) = self.toward(light);
-        let mut n_dot_l = [0.0f32; LANES];
-        let mut n_dot_h = [0.0f32; LANES];
-        for l in 0..LANES {
-            let u = [l_dir[0][l], l_dir[1][l], l_dir[2][l]];
-            let n = [self.n[0][l], self.n[1][l], self.n[2][l]];
-            n_dot_l[l] = n[0] * u[0] + n[1] * u[1] + n[2] * u[2];
-            // The half vector with v = −d.
-            let h = [0, 1, 2].map(|k| u[k] + -self.d[k][l]);
-            let len = (h[0] * h[0] + h[1] * h[1] + h[2] * h[2]).sqrt();
-            let hn = h.map(|c| c / len);
-            let ndh = (n[0] * hn[0] + n[1] * hn[1] + n[2] * hn[2]).max(0.0);
-            n_dot_h[l] = if len > 0.0 { ndh } else { 0.0 };
-        }
-        let power = specular_power(&n_dot_h, &self.exponent);
-        let attenuates = light.attenuates();
-        let mut scale = [1.0f32; LANES];
-        if attenuates {
-            for l in 0..LANES {
-                let u = Vec3::new(l_dir[0][l], l_dir[1][l], l_dir[2][l]);
-                scale[l] = light.attenuation(u, dist[l]);
-            }
-        }
-        let mut out = [[0.0f32; LANES]; 3];
-        let mut mask = 0u32;
-        for l in 0..LANES {
-            let diffuse = n_dot_l[l].max(0.0);
-            let mut c = [0.0f32; 3];
-            for k in 0..3 {
-                let kd = self.kd[k][l] * diffuse;
-                let with_spec = kd + self.ks[k][l] * power[l];
-                c[k] = if self.spec[l] { with_spec } else { kd };
-                c[k] *= light.intensity[k];
-            }
-            if attenuates {
-                c = c.map(|x| x * scale[l]);
-                if !c.iter().all(|x| x.is_finite()) {
-                    c = [0.0; 3];
-                }
-            }
-            let lit =
-                valid[l] & (n_dot_l[l] > 0.0) & ((c[0] != 0.0) | (c[1] != 0.0) | (c[2] != 0.0));
-            let scale = 1.0 - self.alpha[l];
-            for k in 0..3 {
-                let r = self.w[k][l] * scale * c[k];
-                out[k][l] = if lit { r } else { 0.0 };
-            }
-            let nonzero = (out[0][l] != 0.0) | (out[1][l] != 0.0) | (out[2][l] != 0.0);
-            mask |= u32::from(nonzero) << l;
-        }
-        (out, mask)
-    }
-}
-
-/// [`shadow_ray`] from 8 spawn points toward `light`, in lanes: directions and `t_max`.
-#[inline(always)]
-fn shadow_rays8(spawn: &[[f32; LANES]; 3], light: &Light) -> ([[f32; LANES]; 3], [f32; LANES]) {
-    if let Emission::Directional { to_light } = light.emission {
-        let dir = to_light.to_array().map(|c| [c; LANES]);
-        return (dir, [f32::INFINITY; LANES]);
-    }
-    let lp = light.position;
-    let le = gamma(1) * lp.abs();
-    let mut dir = [[0.0f32; LANES]; 3];
-    let mut t_max = [0.0f32; LANES];
-    for l in 0..LANES {
-        let to = [0, 1, 2].map(|k| lp[k] - spawn[k][l]);
-        let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
-        let u = to.map(|c| c / dist);
-        let along = u[0].abs() * le.x + u[1].abs() * le.y + u[2].abs() * le.z;
-        t_max[l] = (dist * (1.0 - gamma(3)) - along).max(0.0);
+    fn radiance(&self, light: &Light) -> ([V; 3], u32) {
+        let zero = V::splat(0.0);
+        let (u, dist, valid) = self.toward(light);
+        let n = self.n;
+        let n_dot_l = n[0].mul(u[0]).add(n[1].mul(u[1])).add(n[2].mul(u[2]));
+        // The half vector with v = −d (`u + −d` is `u − d`).
+        let h = [
+            u[0].sub(self.d[0]),
+            u[1].sub(self.d[1]),
+            u[2].sub(self.d[2]),
+        ];
+        let len = h[0]
+            .mul(h[0])
+            .add(h[1].mul(h[1]))
+            .add(h[2].mul(h[2]))
+            .sqrt();
+        let hn = [h[0].div(len), h[1].div(len), h[2].div(len)];
+        let ndh = max0(n[0].mul(hn[0]).add(n[1].mul(hn[1])).add(n[2].mul(hn[2])));
+        let n_dot_h = V::select(len.gt(zero), ndh, zero);
+        let power = specular_power(n_dot_h, &self.exponent);
+        let diffuse = max0(n_dot_l);
+        let mut c = [zero; 3];
         for k in 0..3 {
-            dir[k][l] = u[k];
+            let kd = self.kd[k].mul(diffuse);
+            let with_spec = kd.add(self.ks[k].mul(power));
+            c[k] = V::select(self.spec, with_spec, kd).mul(V::splat(light.intensity[k]));
         }
+        if light.attenuates() {
+            let mut us = [0.0f32; 3 * MAX_LANES];
+            let (mut ds, mut scale) = ([0.0f32; MAX_LANES], [0.0f32; MAX_LANES]);
+            V::store3(u, &mut us);
+            dist.store(&mut ds);
+            for l in 0..V::LANES {
+                scale[l] = light.attenuation(Vec3::from_slice(&us[3 * l..]), ds[l]);
+            }
+            let scale = V::load(&scale);
+            for x in &mut c {
+                *x = x.mul(scale);
+            }
+            let inf = V::splat(f32::INFINITY);
+            let finite = V::and(
+                V::and(c[0].abs().lt(inf), c[1].abs().lt(inf)),
+                c[2].abs().lt(inf),
+            );
+            for x in &mut c {
+                *x = V::select(finite, *x, zero);
+            }
+        }
+        let c_zero = V::and(V::and(c[0].eq(zero), c[1].eq(zero)), c[2].eq(zero));
+        let lit = V::and(valid, n_dot_l.gt(zero));
+        let keep = V::splat(1.0).sub(self.alpha);
+        let mut out = [zero; 3];
+        for k in 0..3 {
+            let r = self.w[k].mul(keep).mul(c[k]);
+            out[k] = V::select(c_zero, zero, V::select(lit, r, zero));
+        }
+        let o_zero = V::and(V::and(out[0].eq(zero), out[1].eq(zero)), out[2].eq(zero));
+        let all = u32::MAX >> (32 - V::LANES);
+        (out, !V::bits(o_zero) & all)
     }
-    (dir, t_max)
 }
 
 /// The first pass of [`spawn_shadow_rays`] over one chunk of hits: every (hit, light) row's
@@ -508,58 +522,104 @@ struct RadianceKernel<'a, 'h> {
     out: &'a mut [Vec3],
 }
 
-impl Kernel for RadianceKernel<'_, '_> {
+impl RadianceKernel<'_, '_> {
+    /// The scalar definition for row `h` and light `li`: written to `out`, true when non-zero.
+    #[inline(always)]
+    fn scalar(&mut self, h: usize, li: usize) -> bool {
+        let m = &self.materials[self.hits.material[h] as usize];
+        let (d, w) = (self.hits.direction[h], self.hits.weight[h]);
+        let surface = (
+            self.hits.point[h],
+            self.hits.normal[h],
+            self.hits.shading[h],
+        );
+        let light = &self.lights[li];
+        let v = shadow_radiance(light, m, self.specular, (d, w), surface);
+        self.out[(h - self.hits_range.start) * self.lights.len() + li] = v;
+        v != Vec3::ZERO
+    }
+}
+
+impl WideKernel for RadianceKernel<'_, '_> {
     type Output = usize;
     #[inline(always)]
-    fn run(self, _level: Level) -> usize {
-        let per_hit = self.lights.len();
+    fn run<V: Wide>(mut self) -> usize {
+        let (lights, per_hit) = (self.lights, self.lights.len());
         let mut kept = 0;
         let Range { start, end } = self.hits_range;
-        for g in (start..end).step_by(LANES) {
-            let rows = g..(g + LANES).min(end);
-            let x = HitLanes::load(
+        let n = V::LANES;
+        let mut g = start;
+        while g + n <= end {
+            let rows = g..g + n;
+            g += n;
+            let x = HitLanes::<V>::load(
                 self.hits,
                 self.materials,
                 self.specular,
                 self.meshes,
                 rows.clone(),
             );
-            let smooth = x.smooth.iter().any(|&s| s);
-            for (li, light) in self.lights.iter().enumerate() {
+            for (li, light) in lights.iter().enumerate() {
                 let (r, nonzero) = x.radiance(light);
-                if smooth {
-                    for (l, h) in rows.clone().enumerate() {
-                        let mut v = Vec3::new(r[0][l], r[1][l], r[2][l]);
-                        if x.smooth[l] {
-                            let m = &self.materials[self.hits.material[h] as usize];
-                            let (d, w) = (self.hits.direction[h], self.hits.weight[h]);
-                            let (p, n) = (self.hits.point[h], self.hits.normal[h]);
-                            let surface = (p, n, self.hits.shading[h]);
-                            v = shadow_radiance(light, m, self.specular, (d, w), surface);
-                        }
-                        kept += usize::from(v != Vec3::ZERO);
-                        self.out[(h - start) * per_hit + li] = v;
-                    }
-                    continue;
-                }
-                // No smooth lane: the lanes are the rows' values.
-                if per_hit == 1 {
+                if per_hit == 1 && x.smooth == 0 {
                     // One light: the group's rows are consecutive.
-                    kept += (nonzero & ((1 << rows.len()) - 1)).count_ones() as usize;
-                    store3(&r, &mut self.out[rows.start - start..rows.end - start]);
+                    kept += nonzero.count_ones() as usize;
+                    let out = &mut self.out[rows.start - start..rows.end - start];
+                    V::store3(r, bytemuck::cast_slice_mut(out));
                     continue;
                 }
-                // Stored a component at a time (a whole `Vec3` built on the stack and copied
-                // stalls on store forwarding).
+                let mut rs = [0.0f32; 3 * MAX_LANES];
+                V::store3(r, &mut rs);
                 for (l, h) in rows.clone().enumerate() {
+                    if (x.smooth >> l) & 1 != 0 {
+                        kept += usize::from(self.scalar(h, li));
+                        continue;
+                    }
                     kept += ((nonzero >> l) & 1) as usize;
-                    let o = &mut self.out[(h - start) * per_hit + li];
-                    (o.x, o.y, o.z) = (r[0][l], r[1][l], r[2][l]);
+                    self.out[(h - start) * per_hit + li] = Vec3::from_slice(&rs[3 * l..]);
                 }
+            }
+        }
+        // The last rows (fewer than a group): the scalar definition.
+        for h in g..end {
+            for li in 0..per_hit {
+                kept += usize::from(self.scalar(h, li));
             }
         }
         kept
     }
+}
+
+/// [`shadow_ray`] from `V::LANES` spawn points toward `light`, on [`Wide`] lanes in its
+/// operations' order: directions and `t_max` (the test checks the bits against `shadow_ray`).
+#[inline(always)]
+fn shadow_rays_wide<V: Wide>(spawn: [V; 3], light: &Light) -> ([V; 3], V) {
+    if let Emission::Directional { to_light } = light.emission {
+        return (splat3(to_light), V::splat(f32::INFINITY));
+    }
+    let lp: [V; 3] = splat3(light.position);
+    let le = splat3(gamma(1) * light.position.abs());
+    let to = [
+        lp[0].sub(spawn[0]),
+        lp[1].sub(spawn[1]),
+        lp[2].sub(spawn[2]),
+    ];
+    let dist = to[0]
+        .mul(to[0])
+        .add(to[1].mul(to[1]))
+        .add(to[2].mul(to[2]))
+        .sqrt();
+    let u = [to[0].div(dist), to[1].div(dist), to[2].div(dist)];
+    let along = u[0]
+        .abs()
+        .mul(le[0])
+        .add(u[1].abs().mul(le[1]))
+        .add(u[2].abs().mul(le[2]));
+    let t_max = dist
+        .mul(V::splat(1.0 - gamma(3)))
+        .sub(along)
+        .max(V::splat(0.0));
+    (u, t_max)
 }
 
 /// The second pass of [`spawn_shadow_rays`] over one chunk of hits: the rays of its non-zero rows,
@@ -576,10 +636,10 @@ struct ShadowRayKernel<'a, 'h> {
     slot: &'a mut [SampleSlot],
 }
 
-impl Kernel for ShadowRayKernel<'_, '_> {
+impl WideKernel for ShadowRayKernel<'_, '_> {
     type Output = ();
     #[inline(always)]
-    fn run(self, _level: Level) {
+    fn run<V: Wide>(self) {
         let per_hit = self.lights.len();
         let Range { start, end } = self.hits_range;
         let mut j = 0;
@@ -600,31 +660,52 @@ impl Kernel for ShadowRayKernel<'_, '_> {
             return;
         }
         let light = &self.lights[0];
-        for g in (start..end).step_by(LANES) {
-            let rows = g..(g + LANES).min(end);
-            let spawn: [[f32; LANES]; 3] = load3(&self.hits.spawn[rows.clone()]);
-            let (dir, t) = shadow_rays8(&spawn, light);
+        let n = V::LANES;
+        let mut g = start;
+        while g + n <= end {
+            let rows = g..g + n;
+            g += n;
+            let spawn_rows = &self.hits.spawn[rows.clone()];
+            let (dir, t) = shadow_rays_wide(V::load3(bytemuck::cast_slice(spawn_rows)), light);
             let values = &self.radiance[rows.start - start..rows.end - start];
-            if rows.len() == LANES && values.iter().all(|&v| v != Vec3::ZERO) {
+            if values.iter().all(|&v| v != Vec3::ZERO) {
                 // Every row kept: the group's rows go out whole.
-                let out = j..j + LANES;
-                self.origin[out.clone()].copy_from_slice(&self.hits.spawn[rows.clone()]);
-                store3(&dir, &mut self.direction[out.clone()]);
-                self.t_max[out.clone()].copy_from_slice(&t);
+                let out = j..j + n;
+                self.origin[out.clone()].copy_from_slice(spawn_rows);
+                V::store3(
+                    dir,
+                    bytemuck::cast_slice_mut(&mut self.direction[out.clone()]),
+                );
+                t.store(&mut self.t_max[out.clone()]);
                 self.out_radiance[out.clone()].copy_from_slice(values);
                 self.slot[out].copy_from_slice(&self.hits.slot[rows]);
-                j += LANES;
+                j += n;
                 continue;
             }
+            let mut dirs = [0.0f32; 3 * 32];
+            let mut ts = [0.0f32; 32];
+            V::store3(dir, &mut dirs);
+            t.store(&mut ts);
             for (l, h) in rows.enumerate() {
                 let value = self.radiance[h - start];
                 if value != Vec3::ZERO {
                     self.origin[j] = self.hits.spawn[h];
-                    self.direction[j] = Vec3::new(dir[0][l], dir[1][l], dir[2][l]);
-                    (self.t_max[j], self.out_radiance[j]) = (t[l], value);
+                    self.direction[j] = Vec3::from_slice(&dirs[3 * l..]);
+                    (self.t_max[j], self.out_radiance[j]) = (ts[l], value);
                     self.slot[j] = self.hits.slot[h];
                     j += 1;
                 }
+            }
+        }
+        // The last rows (fewer than a group): the scalar definition.
+        for h in g..end {
+            let value = self.radiance[h - start];
+            if value != Vec3::ZERO {
+                let spawn = self.hits.spawn[h];
+                let (dir, t) = shadow_ray(spawn, light);
+                (self.origin[j], self.direction[j], self.t_max[j]) = (spawn, dir, t);
+                (self.out_radiance[j], self.slot[j]) = (value, self.hits.slot[h]);
+                j += 1;
             }
         }
     }
@@ -632,9 +713,11 @@ impl Kernel for ShadowRayKernel<'_, '_> {
 
 /// Spawns the shadow rays of `pass` (`shadows` is overwritten): for every hit of the pass and
 /// every light of the pass that can light it, in (hit, light) order — slot order. Two passes over
-/// chunks of hits, each a SIMD kernel ([`crate::simd::dispatch`]): the first evaluates every
-/// (hit, light) row's radiance in lanes of 8 hits and counts the non-zero ones, the second writes
-/// each chunk's rays at its place in the queue.
+/// chunks of hits, each a [`Wide`] kernel ([`dispatch_wide`]: 16 lanes with AVX-512, else 8):
+/// the first evaluates every (hit, light) row's radiance in lanes of hits and counts the
+/// non-zero ones, the second writes each chunk's rays at its place in the queue. A chunk's last
+/// rows (fewer than a group) and rows with vertex normals take the scalar definitions
+/// (`shadow_radiance`, `shadow_ray`), which the lanes reproduce bit for bit.
 pub(crate) fn spawn_shadow_rays(
     world: &World,
     settings: &ShadeSettings,
@@ -689,7 +772,7 @@ fn spawn_shadow_rays_at(
                 hits_range: first..first + out.len() / per_hit,
                 out,
             };
-            dispatch(level, kernel)
+            dispatch_wide(level, kernel)
         })
         .collect_into_vec(&mut scratch.counts);
     let counts = &scratch.counts;
@@ -708,7 +791,7 @@ fn spawn_shadow_rays_at(
             out_radiance: out.radiance,
             slot: out.slot,
         };
-        dispatch(level, kernel);
+        dispatch_wide(level, kernel);
     });
 }
 
@@ -1113,19 +1196,33 @@ mod tests {
 
     #[test]
     fn lane_specular_powers_are_the_scalar_ones_bit_for_bit() {
-        let x: [f32; LANES] = std::array::from_fn(|l| 0.05 + 0.12 * l as f32);
+        /// [`specular_power`] of `x` and `p` at one width.
+        struct Powers<'a>(&'a [f32], &'a [f32]);
+        impl WideKernel for Powers<'_> {
+            type Output = Vec<f32>;
+            #[inline(always)]
+            fn run<V: Wide>(self) -> Vec<f32> {
+                let mut out = vec![0.0; V::LANES];
+                specular_power(V::load(self.0), self.1).store(&mut out);
+                out
+            }
+        }
+        let x: [f32; MAX_LANES] = std::array::from_fn(|l| 0.05 + 0.06 * l as f32);
         for p in [
-            [32.0; LANES],
-            [0.0; LANES],
-            [1.0; LANES],
-            [65_536.0; LANES],
-            [2.5; LANES],
+            [32.0; MAX_LANES],
+            [0.0; MAX_LANES],
+            [1.0; MAX_LANES],
+            [65_536.0; MAX_LANES],
+            [2.5; MAX_LANES],
             std::array::from_fn(|l| [8.0, 32.0, 1.5, 100.0][l % 4]),
         ] {
-            let lanes = specular_power(&x, &p);
-            for l in 0..LANES {
-                let want = arith::pow(x[l], p[l]);
-                assert_eq!(lanes[l].to_bits(), want.to_bits(), "{}^{}", x[l], p[l]);
+            for level in Level::supported() {
+                let lanes = dispatch_wide(level, Powers(&x, &p));
+                assert!(lanes.len() >= 8);
+                for l in 0..lanes.len() {
+                    let want = arith::pow(x[l], p[l]);
+                    assert_eq!(lanes[l].to_bits(), want.to_bits(), "{}^{}", x[l], p[l]);
+                }
             }
         }
     }

@@ -148,24 +148,53 @@ pub(crate) fn gamma_level(c: f32, inv_gamma: f32) -> u8 {
     (255.0 * arith::pow(c, inv_gamma)).round() as u8
 }
 
+/// Half the width, in units in the last place, of the bracket [`threshold`] first tries around
+/// its estimate: the estimate's own error is a few ulps.
+const BRACKET: u32 = 32;
+
+/// The first value of level `k` (1..=255) of `inv_gamma`: the bisection over the bit patterns
+/// of `[0, 1]` for the smallest `c` with [`gamma_level`]`(c) ≥ k`, with the bracket first
+/// narrowed to `BRACKET` ulps either side of the estimate `((k − ½)/255)^γ` when that bracket
+/// holds the change of level (checked: the level below `k` at its low end, at least `k` at its
+/// high end), else the whole of `[0, 1]`. Where the level does not decrease (everywhere, as far
+/// as tested) both brackets hold the same single change, so the narrowing changes no threshold
+/// (`bracketed_thresholds_are_the_full_bisections`); it turns 30 steps into 9 or 10.
+fn threshold(k: u8, inv_gamma: f32) -> f32 {
+    let one = 1.0f32.to_bits();
+    let reaches = |b: u32| gamma_level(f32::from_bits(b), inv_gamma) >= k;
+    // Invariant: level(lo) < k ≤ level(hi); level(0) = 0 and level(1) = 255.
+    let (mut lo, mut hi) = (0u32, one);
+    let estimate = arith::pow((f32::from(k) - 0.5) / 255.0, 1.0 / inv_gamma);
+    if estimate > 0.0 && estimate < 1.0 {
+        let e = estimate.to_bits();
+        let (l, h) = (e.saturating_sub(BRACKET), (e + BRACKET).min(one));
+        if !reaches(l) && reaches(h) {
+            (lo, hi) = (l, h);
+        }
+    }
+    bisect(lo, hi, reaches)
+}
+
+/// The smallest bit pattern in `(lo, hi]` where `reaches` holds, given that it does not hold at
+/// `lo` and holds at `hi` (a bisection: the first change when there are several).
+fn bisect(mut lo: u32, mut hi: u32, reaches: impl Fn(u32) -> bool) -> f32 {
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if reaches(mid) {
+            hi = mid;
+        } else {
+            lo = mid;
+        }
+    }
+    f32::from_bits(hi)
+}
+
 impl GammaTable {
-    /// The table of `inv_gamma` (255 bisections of 30 steps each, then one pass over the buckets).
+    /// The table of `inv_gamma` (255 bracketed bisections, [`threshold`], then one pass over
+    /// the buckets).
     pub fn new(inv_gamma: f32) -> GammaTable {
         let one = 1.0f32.to_bits();
-        let start: [f32; 255] = std::array::from_fn(|i| {
-            let k = i as u8 + 1;
-            // Invariant: level(lo) < k ≤ level(hi); level(0) = 0 and level(1) = 255.
-            let (mut lo, mut hi) = (0u32, one);
-            while hi - lo > 1 {
-                let mid = lo + (hi - lo) / 2;
-                if gamma_level(f32::from_bits(mid), inv_gamma) >= k {
-                    hi = mid;
-                } else {
-                    lo = mid;
-                }
-            }
-            f32::from_bits(hi)
-        });
+        let start: [f32; 255] = std::array::from_fn(|i| threshold(i as u8 + 1, inv_gamma));
         // One merge pass: the level only grows with the bucket's first value.
         let mut level = 0usize;
         let bucket = (0..=one >> BUCKET_SHIFT)
@@ -244,6 +273,41 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The full bisection over `[0, 1]`: what [`threshold`]'s bracket must not change.
+    fn full_bisection(k: u8, inv_gamma: f32) -> f32 {
+        bisect(0, 1.0f32.to_bits(), |b| {
+            gamma_level(f32::from_bits(b), inv_gamma) >= k
+        })
+    }
+
+    #[test]
+    fn bracketed_thresholds_are_the_full_bisections() {
+        let mut narrowed = 0;
+        for gamma in [2.2f32, 1.8, 1.0, 2.4, 0.5, 4.0, 1.0 / 0.45, 3.0, 8.0] {
+            let inv = 1.0 / gamma;
+            let table = GammaTable::new(inv);
+            for (i, &t) in table.start.iter().enumerate() {
+                let k = i as u8 + 1;
+                assert_eq!(
+                    t.to_bits(),
+                    full_bisection(k, inv).to_bits(),
+                    "level {k} at gamma {gamma}"
+                );
+                // The threshold is where the level changes: below k just under it, k or more
+                // at it and just above it.
+                assert!(gamma_level(t.next_down(), inv) < k, "{k} at gamma {gamma}");
+                assert!(gamma_level(t, inv) >= k, "{k} at gamma {gamma}");
+                assert!(gamma_level(t.next_up(), inv) >= k, "{k} at gamma {gamma}");
+                // The narrow bracket held the change (else the table cost the full 30 steps).
+                let e = arith::pow((f32::from(k) - 0.5) / 255.0, gamma).to_bits();
+                if t.to_bits().abs_diff(e) <= BRACKET {
+                    narrowed += 1;
+                }
+            }
+        }
+        assert_eq!(narrowed, 9 * 255, "thresholds found in the narrow bracket");
     }
 
     #[test]

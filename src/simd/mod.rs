@@ -225,6 +225,39 @@ mod shuffle3 {
         out
     }
 
+    /// [`deinterleave`] on registers: rows `a b c` to x, y and z.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn deinterleave_regs([a, b, c]: [__m256; 3]) -> [__m256; 3] {
+        let perm = |v: __m256, idx: [i32; 8]| {
+            let i = _mm256_setr_epi32(
+                idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7],
+            );
+            _mm256_permutevar8x32_ps(v, i)
+        };
+        let x = perm(_mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(a, b), c), X);
+        let y = perm(_mm256_blend_ps::<0x49>(_mm256_blend_ps::<0x24>(a, b), c), Y);
+        let z = perm(_mm256_blend_ps::<0x92>(_mm256_blend_ps::<0x49>(a, b), c), Z);
+        [x, y, z]
+    }
+
+    /// [`interleave`] on registers: x, y and z to rows `a b c`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    pub(super) fn interleave_regs([x, y, z]: [__m256; 3]) -> [__m256; 3] {
+        let perm = |v: __m256, idx: [i32; 8]| {
+            let i = _mm256_setr_epi32(
+                idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7],
+            );
+            _mm256_permutevar8x32_ps(v, i)
+        };
+        let (tx, ty, tz) = (perm(x, TX), perm(y, TY), perm(z, TZ));
+        let a = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(tx, ty), tz);
+        let b = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(tz, tx), ty);
+        let c = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(ty, tz), tx);
+        [a, b, c]
+    }
+
     #[inline]
     #[target_feature(enable = "avx2")]
     pub(super) fn interleave(lanes: &[[f32; 8]; 3], rows: &mut [f32; 24]) {

@@ -76,6 +76,14 @@ pub(crate) trait Wide: Copy {
     /// Every lane set.
     fn all() -> Self::Mask;
     // end issue 24
+    // issue 23: square roots and stride-3 (`Vec3` row) columns.
+    /// `√self` (IEEE, correctly rounded: `f32::sqrt`).
+    fn sqrt(self) -> Self;
+    /// Lane `l` of component `k` is `rows[3l + k]`: [`Wide::LANES`] `Vec3` rows as x, y and z
+    /// (`rows` has at least `3 ·` [`Wide::LANES`] elements).
+    fn load3(rows: &[f32]) -> [Self; 3];
+    /// The inverse of [`Wide::load3`]: lane `l` of component `k` to `rows[3l + k]`.
+    fn store3(v: [Self; 3], rows: &mut [f32]);
 }
 
 /// A kernel generic over the lane type: [`dispatch_wide`] runs it with the widest [`Wide`] the
@@ -213,6 +221,21 @@ impl<V: Wide> Wide for Pair<V> {
     fn all() -> Self::Mask {
         (V::all(), V::all())
     }
+    // issue 23
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        Pair(self.0.sqrt(), self.1.sqrt())
+    }
+    #[inline(always)]
+    fn load3(rows: &[f32]) -> [Self; 3] {
+        let (a, b) = (V::load3(rows), V::load3(&rows[3 * V::LANES..]));
+        [Pair(a[0], b[0]), Pair(a[1], b[1]), Pair(a[2], b[2])]
+    }
+    #[inline(always)]
+    fn store3(v: [Self; 3], rows: &mut [f32]) {
+        V::store3([v[0].0, v[1].0, v[2].0], rows);
+        V::store3([v[0].1, v[1].1, v[2].1], &mut rows[3 * V::LANES..]);
+    }
 }
 
 /// Eight lanes in an array, each operation a scalar loop (the portable path).
@@ -329,6 +352,25 @@ impl Wide for Portable8 {
     fn all() -> u32 {
         0xff
     }
+    // issue 23
+    #[inline(always)]
+    fn sqrt(self) -> Portable8 {
+        Portable8(self.0.map(f32::sqrt))
+    }
+    #[inline(always)]
+    fn load3(rows: &[f32]) -> [Portable8; 3] {
+        let rows = &rows[..24];
+        std::array::from_fn(|k| Portable8(std::array::from_fn(|l| rows[3 * l + k])))
+    }
+    #[inline(always)]
+    fn store3(v: [Portable8; 3], rows: &mut [f32]) {
+        let rows = &mut rows[..24];
+        for l in 0..8 {
+            for k in 0..3 {
+                rows[3 * l + k] = v[k].0[l];
+            }
+        }
+    }
 }
 
 // issue 24: one lane, so the single-ray loop's interval step is the lanes' formula.
@@ -424,6 +466,19 @@ impl Wide for f32 {
     #[inline(always)]
     fn all() -> bool {
         true
+    }
+    // issue 23
+    #[inline(always)]
+    fn sqrt(self) -> f32 {
+        f32::sqrt(self)
+    }
+    #[inline(always)]
+    fn load3(rows: &[f32]) -> [f32; 3] {
+        [rows[0], rows[1], rows[2]]
+    }
+    #[inline(always)]
+    fn store3(v: [f32; 3], rows: &mut [f32]) {
+        rows[..3].copy_from_slice(&v);
     }
 }
 // end issue 24
@@ -559,6 +614,41 @@ mod x86 {
             // SAFETY: as `add`.
             unsafe { _mm256_castsi256_ps(_mm256_set1_epi32(-1)) }
         }
+        // issue 23
+        #[inline(always)]
+        fn sqrt(self) -> F32x8 {
+            // SAFETY: as `add`.
+            F32x8(unsafe { _mm256_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn load3(rows: &[f32]) -> [F32x8; 3] {
+            let rows = &rows[..24];
+            let p = rows.as_ptr();
+            // SAFETY: AVX2 is available; `rows` holds 24 floats: three unaligned 8-float loads
+            // at 0, 8 and 16, then register shuffles.
+            unsafe {
+                let abc = [
+                    _mm256_loadu_ps(p),
+                    _mm256_loadu_ps(p.add(8)),
+                    _mm256_loadu_ps(p.add(16)),
+                ];
+                let [x, y, z] = super::super::shuffle3::deinterleave_regs(abc);
+                [F32x8(x), F32x8(y), F32x8(z)]
+            }
+        }
+        #[inline(always)]
+        fn store3(v: [F32x8; 3], rows: &mut [f32]) {
+            let rows = &mut rows[..24];
+            let p = rows.as_mut_ptr();
+            // SAFETY: AVX2 is available; register shuffles, then three unaligned 8-float
+            // stores at 0, 8 and 16 of the 24 floats `rows` holds.
+            unsafe {
+                let abc = super::super::shuffle3::interleave_regs([v[0].0, v[1].0, v[2].0]);
+                _mm256_storeu_ps(p, abc[0]);
+                _mm256_storeu_ps(p.add(8), abc[1]);
+                _mm256_storeu_ps(p.add(16), abc[2]);
+            }
+        }
     }
 
     /// Sixteen lanes in one AVX-512 register.
@@ -674,7 +764,101 @@ mod x86 {
         fn all() -> __mmask16 {
             0xffff
         }
+        // issue 23
+        #[inline(always)]
+        fn sqrt(self) -> F32x16 {
+            // SAFETY: as `add`.
+            F32x16(unsafe { _mm512_sqrt_ps(self.0) })
+        }
+        #[inline(always)]
+        fn load3(rows: &[f32]) -> [F32x16; 3] {
+            let rows = &rows[..48];
+            let p = rows.as_ptr();
+            // SAFETY: AVX-512F is available; `rows` holds 48 floats: three unaligned 16-float
+            // loads at 0, 16 and 32, then two-source permutes ([`GATHER3`]).
+            unsafe {
+                let (a, b, c) = (
+                    _mm512_loadu_ps(p),
+                    _mm512_loadu_ps(p.add(16)),
+                    _mm512_loadu_ps(p.add(32)),
+                );
+                let mut out = [F32x16(a); 3];
+                for (o, [ab, abc]) in out.iter_mut().zip(&GATHER3) {
+                    let ab = _mm512_loadu_si512(ab.as_ptr().cast());
+                    let abc = _mm512_loadu_si512(abc.as_ptr().cast());
+                    *o = F32x16(_mm512_permutex2var_ps(
+                        _mm512_permutex2var_ps(a, ab, b),
+                        abc,
+                        c,
+                    ));
+                }
+                out
+            }
+        }
+        #[inline(always)]
+        fn store3(v: [F32x16; 3], rows: &mut [f32]) {
+            let rows = &mut rows[..48];
+            let p = rows.as_mut_ptr();
+            // SAFETY: AVX-512F is available; two-source permutes ([`SCATTER3`]), then three
+            // unaligned 16-float stores at 0, 16 and 32 of the 48 floats `rows` holds.
+            unsafe {
+                for (o, [xy, xyz]) in SCATTER3.iter().enumerate() {
+                    let xy = _mm512_loadu_si512(xy.as_ptr().cast());
+                    let xyz = _mm512_loadu_si512(xyz.as_ptr().cast());
+                    let r = _mm512_permutex2var_ps(
+                        _mm512_permutex2var_ps(v[0].0, xy, v[1].0),
+                        xyz,
+                        v[2].0,
+                    );
+                    _mm512_storeu_ps(p.add(16 * o), r);
+                }
+            }
+        }
     }
+
+    /// [`F32x16::load3`]'s permute indices, per component `k`: lane `l` wants row float
+    /// `e = 3l + k` of the 48 (`a` 0–15, `b` 16–31, `c` 32–47). The first permute of `a`
+    /// and `b` puts `e` in lane `l` when `e < 32`; the second keeps those lanes and takes the
+    /// others from `c` (index `16 + e − 32`).
+    const GATHER3: [[[i32; 16]; 2]; 3] = {
+        let mut t = [[[0; 16]; 2]; 3];
+        let mut k = 0;
+        while k < 3 {
+            let mut l = 0;
+            while l < 16 {
+                let e = 3 * l + k;
+                if e < 32 {
+                    t[k][0][l] = e as i32;
+                    t[k][1][l] = l as i32;
+                } else {
+                    t[k][1][l] = (16 + e - 32) as i32;
+                }
+                l += 1;
+            }
+            k += 1;
+        }
+        t
+    };
+
+    /// [`F32x16::store3`]'s permute indices, per output vector `o`: its float `p` is row float
+    /// `e = 16·o + p`, lane `e / 3` of component `e % 3`. The first permute of x and y puts the
+    /// x and y floats in place; the second keeps them and takes z's from z (index `16 + l`).
+    const SCATTER3: [[[i32; 16]; 2]; 3] = {
+        let mut t = [[[0; 16]; 2]; 3];
+        let mut o = 0;
+        while o < 3 {
+            let mut p = 0;
+            while p < 16 {
+                let e = 16 * o + p;
+                let (l, k) = (e / 3, e % 3);
+                t[o][0][p] = if k == 1 { 16 + l as i32 } else { l as i32 };
+                t[o][1][p] = if k == 2 { 16 + l as i32 } else { p as i32 };
+                p += 1;
+            }
+            o += 1;
+        }
+        t
+    };
 }
 
 #[cfg(test)]
@@ -773,7 +957,22 @@ mod tests {
                     V::bits(V::andnot(V::all(), lt)),
                     mask(&|x, y| x >= y || x.is_nan() || y.is_nan())
                 );
+                // issue 23
+                check(va.sqrt(), &|x, _| x.sqrt(), &mut out);
             }
+            // issue 23: stride-3 rows to x, y, z lanes and back, every float distinct.
+            let rows: Vec<f32> = (0..3 * n).map(|e| e as f32 + 0.5).collect();
+            let xyz = V::load3(&rows);
+            for (k, v) in xyz.iter().enumerate() {
+                let mut out = vec![0.0; n];
+                v.store(&mut out);
+                let want: Vec<f32> = (0..n).map(|l| rows[3 * l + k]).collect();
+                assert_eq!(out, want, "component {k} of {n} lanes");
+            }
+            let mut back = vec![-1.0; 3 * n + 1];
+            V::store3(xyz, &mut back);
+            assert_eq!(&back[..3 * n], rows.as_slice(), "rows of {n} lanes");
+            assert_eq!(back[3 * n], -1.0, "wrote past {n} rows");
             n
         }
     }

@@ -300,6 +300,28 @@ impl super::Wide for F32x4 {
     fn all() -> M32x4 {
         M32x4::all()
     }
+    // issue 23
+    #[inline(always)]
+    fn sqrt(self) -> F32x4 {
+        let a = self.to_array();
+        F32x4::from_array(&a.map(f32::sqrt))
+    }
+    #[inline(always)]
+    fn load3(rows: &[f32]) -> [F32x4; 3] {
+        let rows = &rows[..12];
+        std::array::from_fn(|k| {
+            F32x4::from_array(&[rows[k], rows[3 + k], rows[6 + k], rows[9 + k]])
+        })
+    }
+    #[inline(always)]
+    fn store3(v: [F32x4; 3], rows: &mut [f32]) {
+        let rows = &mut rows[..12];
+        for (k, c) in v.iter().enumerate() {
+            for (l, x) in c.to_array().into_iter().enumerate() {
+                rows[3 * l + k] = x;
+            }
+        }
+    }
 }
 // end issue 24
 

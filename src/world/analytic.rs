@@ -35,6 +35,9 @@ struct Rays8 {
     o: [[f32; LANES]; 3],
     d: [[f32; LANES]; 3],
     t_max: [f32; LANES],
+    /// `1/|d|²` of each lane in f32 where `|d|²` is in `(1e-10, 1e10)`, else NaN (so
+    /// [`misses8`] answers false): computed once per group, not per sphere.
+    inv_a: [f32; LANES],
 }
 
 impl Rays8 {
@@ -44,9 +47,15 @@ impl Rays8 {
             o: load3(origins),
             d: load3(dirs),
             t_max: [0.0; LANES],
+            inv_a: [0.0; LANES],
         };
         for (l, t) in t_max.iter().take(LANES).enumerate() {
             r.t_max[l] = *t;
+        }
+        for l in 0..LANES {
+            let a = r.d[0][l] * r.d[0][l] + r.d[1][l] * r.d[1][l] + r.d[2][l] * r.d[2][l];
+            let ok = (a > 1e-10) & (a < 1e10);
+            r.inv_a[l] = if ok { 1.0 / a } else { f32::NAN };
         }
         r
     }
@@ -106,15 +115,17 @@ fn sphere8(r: &Rays8, s: &Sphere, best: &[f32; LANES]) -> Option<([f32; LANES], 
 }
 
 /// Margin of [`misses8`], relative to `|o − c|² + r²`: f32 rounding moves the squared distance
-/// from the centre to a ray's line by at most a few tens of ulps of that sum (`2^-24` each), far
-/// below this.
+/// from the centre to a ray's line, `|f|² − (f·d)²/|d|²` with `f = o − c`, by at most a few tens
+/// of ulps of `|f|²` (`2^-24` each; `(f·d)²/|d|² ≤ |f|²`), far below this.
 const MISS_MARGIN: f32 = 1e-4;
 
 /// A conservative f32 pre-test of [`sphere8`]: true only when every lane's line passes farther
 /// from the centre than the radius by more than [`MISS_MARGIN`] — then the f64 discriminant is
-/// negative in every lane and `sphere8` returns `None`, so skipping it changes no bit. Any doubt
-/// (a short group's empty lanes, a tiny or huge direction, a tiny radius, NaN or infinity, a
-/// line near the sphere) answers false and the f64 test decides.
+/// negative in every lane and `sphere8` returns `None`, so skipping it changes no bit. The
+/// squared distance is `|f|² − (f·d)² · (1/|d|²)` with the group's [`Rays8::inv_a`]: no
+/// division per sphere. Any doubt (a short group's empty lanes, a tiny or huge direction — NaN
+/// `inv_a` —, a tiny radius, NaN or infinity, a line near the sphere) answers false and the f64
+/// test decides.
 #[inline(always)]
 fn misses8(r: &Rays8, s: &Sphere) -> bool {
     let rr = s.radius * s.radius;
@@ -126,14 +137,11 @@ fn misses8(r: &Rays8, s: &Sphere) -> bool {
     for l in 0..LANES {
         let f = [r.o[0][l] - c.x, r.o[1][l] - c.y, r.o[2][l] - c.z];
         let d = [r.d[0][l], r.d[1][l], r.d[2][l]];
-        let a = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         let b = f[0] * d[0] + f[1] * d[1] + f[2] * d[2];
-        let k = b / a;
-        let line = [f[0] - k * d[0], f[1] - k * d[1], f[2] - k * d[2]];
-        let ll = line[0] * line[0] + line[1] * line[1] + line[2] * line[2];
         let ff = f[0] * f[0] + f[1] * f[1] + f[2] * f[2];
+        let ll = ff - b * b * r.inv_a[l];
         let margin = MISS_MARGIN * (ff + rr);
-        miss &= (a > 1e-10) & (a < 1e10) & (ll - rr > margin);
+        miss &= ll - rr > margin;
     }
     miss
 }
@@ -643,14 +651,16 @@ mod tests {
             1.001,
             1.01,
         ];
-        for s in world.spheres() {
+        // Origins near the scene, then far from it (`|o − c|²` large against `r²`).
+        for (s, far) in world.spheres().iter().flat_map(|s| [(s, 1.0), (s, 300.0)]) {
             for scale in scales {
                 for _ in 0..16 {
-                    let origin = Vec3::new(
-                        rng.range(-10.0, 10.0),
-                        rng.range(-1.0, 6.0),
-                        rng.range(-15.0, 2.0),
-                    );
+                    let origin = far
+                        * Vec3::new(
+                            rng.range(-10.0, 10.0),
+                            rng.range(-1.0, 6.0),
+                            rng.range(-15.0, 2.0),
+                        );
                     let to_c = s.center - origin;
                     let side = to_c
                         .cross(Vec3::new(rng.range(-1.0, 1.0), 1.0, rng.range(-1.0, 1.0)))
