@@ -64,6 +64,14 @@ pub(crate) trait Wide: Copy {
     fn select(m: Self::Mask, a: Self, b: Self) -> Self;
     /// Bit `k` set for a true lane `k`.
     fn bits(m: Self::Mask) -> u32;
+
+    // issue 25: lane counting for the kD builder's small nodes.
+    /// `self + x` where `m`, else `self + 0.0` (`self` but for `-0.0`): counts kept as exact
+    /// small integers in `f32` lanes.
+    #[inline(always)]
+    fn add_where(self, m: Self::Mask, x: Self) -> Self {
+        self.add(Self::select(m, x, Self::splat(0.0)))
+    }
 }
 
 /// A kernel generic over the lane type: [`dispatch_wide`] runs it with the widest [`Wide`] the
