@@ -326,15 +326,18 @@ fn split_lanes<V: Wide>(bounds: &[Aabb], bx: &Aabb) -> Option<Split> {
         let Some(axis_cost) = AxisCost::new(bx, ext, axis, ki) else {
             continue;
         };
-        let mut planar = false;
-        for (i, b) in bounds.iter().enumerate() {
+        // Each plane inside the box once per triangle face (a flat triangle's two faces are one;
+        // the faces of bounds clipped to the box lie on it): repeats cost time, not results.
+        let (mut planar, mut m) = (false, 0);
+        for b in bounds {
             // `+ 0.0`: a plane at `-0.0` is the sweep's `+0.0` (its events are normalised).
             let (lo, hi) = (b.0[axis] + 0.0, b.1[axis] + 0.0);
-            cand[2 * i] = lo;
-            cand[2 * i + 1] = hi;
             planar |= lo == hi;
+            cand[m] = lo;
+            m += (lo > axis_cost.lo && lo < axis_cost.hi) as usize;
+            cand[m] = hi;
+            m += (hi != lo && hi > axis_cost.lo && hi < axis_cost.hi) as usize;
         }
-        let m = 2 * n;
         cand[m..m.next_multiple_of(V::LANES)].fill(f32::NAN);
         let (box_lo, box_hi) = (V::splat(axis_cost.lo), V::splat(axis_cost.hi));
         for at in (0..m).step_by(V::LANES) {
