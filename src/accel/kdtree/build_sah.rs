@@ -612,20 +612,26 @@ fn small(
     };
     let (axis, s) = (split.axis, split.pos);
     let (lb, rb) = split_box(&bx, axis, s);
+    // Classified once; the left child's triangles, then the right child's, after `mark`.
     let mark = arena.ids.len();
+    let mut sides = [0u8; SMALL];
     let mut counts = [0usize; 2];
-    for (c, cb) in [(0usize, &lb), (1, &rb)] {
-        let me = 1u8 << c;
-        for i in first..first + n {
-            let b = arena.bounds[i];
-            let sd = classify(&b, &split);
-            if sd & me != 0 {
-                counts[c] += 1;
-                let id = arena.ids[i];
-                arena.ids.push(id);
-                arena
-                    .bounds
-                    .push(if sd == 3 { clip_to_box(&b, cb) } else { b });
+    for (sd, b) in sides.iter_mut().zip(&arena.bounds[first..first + n]) {
+        *sd = classify(b, &split);
+        counts[0] += (*sd & 1) as usize;
+        counts[1] += (*sd >> 1) as usize;
+    }
+    let end = mark + counts[0] + counts[1];
+    arena.ids.resize(end, 0);
+    arena.bounds.resize(end, ([0.0; 3], [0.0; 3]));
+    let mut at = [mark, mark + counts[0]];
+    for (k, &sd) in sides[..n].iter().enumerate() {
+        let (id, b) = (arena.ids[first + k], arena.bounds[first + k]);
+        for (c, cb) in [(0usize, &lb), (1, &rb)] {
+            if sd >> c & 1 != 0 {
+                arena.ids[at[c]] = id;
+                arena.bounds[at[c]] = if sd == 3 { clip_to_box(&b, cb) } else { b };
+                at[c] += 1;
             }
         }
     }
