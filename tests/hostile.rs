@@ -170,6 +170,31 @@ fn a_file_that_is_not_obj_is_an_error_naming_the_line_not_an_empty_mesh() {
 }
 
 #[test]
+fn a_file_bad_beyond_the_first_look_is_refused_with_the_checks_error_on_every_load_path() {
+    // The render looks at the first 64 KiB before reading a mesh and checks its first MiB before
+    // parsing it: a bad line at about 200 KB is found by the second check, with the error
+    // `ObjMesh::read` gives (file and line), with or without a tree cache.
+    let dir = Scratch::new("hostile-bad-late");
+    let good = TRIANGLE.repeat(200_000 / TRIANGLE.len());
+    let line = good.lines().count() + 1;
+    dir.write("m.obj", &format!("{good}hello world\n{TRIANGLE}"));
+    let want = chain(&ObjMesh::read(&dir.join("m.obj")).expect_err("a bad OBJ file accepted"));
+    assert!(want.contains(&format!("m.obj:{line}:")), "{want}");
+    let scene = load(&dir.write(
+        "s.toml",
+        &scene_text("[[mesh]]\npath = \"m.obj\"\nmaterial = \"floor\"\n"),
+    ))
+    .expect("scene");
+    let e = World::load(&scene).map(|_| ()).expect_err("no cache");
+    assert_eq!(chain(&e), want);
+    let cache = wavefront::accel::cache::TreeCache::new(dir.join("cache"));
+    let e = World::load_cached(&scene, Some(&cache))
+        .map(|_| ())
+        .expect_err("with a cache");
+    assert_eq!(chain(&e), want);
+}
+
+#[test]
 fn cr_only_line_endings_keep_the_mesh() {
     let dir = Scratch::new("hostile-cr");
     let text = TRIANGLE.replace('\n', "\r");

@@ -574,18 +574,39 @@ const MAX_LINE: usize = 16 << 20;
 /// With `prefix`, only the lines within its first `prefix` bytes are checked (a quick look before
 /// a file is read whole). A PLY or glTF file passes: its own reader checks it.
 pub(crate) fn check_file(path: &Path, prefix: Option<u64>) -> Result<(), MeshError> {
-    use std::io::Read as _;
     if check_format(path)? != Format::Obj {
         return Ok(());
     }
+    let (file, _) = crate::input::open_regular(path).map_err(|source| MeshError::Read {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    check_stream(path, file, prefix)
+}
+
+/// [`check_file`] of the bytes of `path` already read (`bytes`): the same lines checked, the
+/// same errors.
+pub(crate) fn check_bytes(path: &Path, bytes: &[u8], prefix: Option<u64>) -> Result<(), MeshError> {
+    if check_format(path)? != Format::Obj {
+        return Ok(());
+    }
+    check_stream(path, bytes, prefix)
+}
+
+/// [`check_file`] of OBJ text streamed from `reader` (the file `path`).
+fn check_stream(
+    path: &Path,
+    reader: impl std::io::Read,
+    prefix: Option<u64>,
+) -> Result<(), MeshError> {
+    use std::io::Read as _;
     let read_error = |source| MeshError::Read {
         path: path.to_path_buf(),
         source,
     };
-    let (file, _) = crate::input::open_regular(path).map_err(read_error)?;
-    let mut file = file.take(prefix.unwrap_or(u64::MAX));
+    let mut file = reader.take(prefix.unwrap_or(u64::MAX));
     let mut check = LineCheck::new(path);
-    let mut chunk = vec![0u8; 1 << 20];
+    let mut chunk = vec![0u8; prefix.map_or(1 << 20, |p| p.min(1 << 20) as usize)];
     let mut line: Vec<u8> = Vec::new();
     let mut line_no = 0usize;
     let mut after_cr = false;

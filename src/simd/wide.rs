@@ -84,6 +84,13 @@ pub(crate) trait Wide: Copy {
     fn load3(rows: &[f32]) -> [Self; 3];
     /// The inverse of [`Wide::load3`]: lane `l` of component `k` to `rows[3l + k]`.
     fn store3(v: [Self; 3], rows: &mut [f32]);
+    // issue 25: lane counting for the kD builder's small nodes.
+    /// `self + x` where `m`, else `self + 0.0` (`self` but for `-0.0`): counts kept as exact
+    /// small integers in `f32` lanes.
+    #[inline(always)]
+    fn add_where(self, m: Self::Mask, x: Self) -> Self {
+        self.add(Self::select(m, x, Self::splat(0.0)))
+    }
 }
 
 /// A kernel generic over the lane type: [`dispatch_wide`] runs it with the widest [`Wide`] the

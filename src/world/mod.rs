@@ -19,7 +19,7 @@ pub mod frame;
 mod load;
 mod sphere_bvh;
 pub use analytic::SurfaceOut;
-pub use load::{CacheStatus, Setup, cache_key, centred_entry, read_mesh_file};
+pub use load::{CacheStatus, Setup, cache_key, centred_entry, check_mesh_bytes, read_mesh_file};
 pub use sphere_bvh::{SPHERE_BVH_MIN, SphereBvh};
 
 /// Anything that can go wrong turning a [`Scene`] into a traceable world.

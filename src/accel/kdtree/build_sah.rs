@@ -3,9 +3,10 @@
 //!
 //! Each node carries its triangles' bounds clipped to the node box and, per axis, the split
 //! events (end / planar / start) sorted once at the root and kept sorted by filtering and merging
-//! on the way down; nodes of at most [`SMALL`] triangles regenerate and sort their events instead
-//! (cheaper at that size) and bound straddling triangles by box intersection rather than exact
-//! clipping. A sweep per axis finds the cheapest plane; empty space gets a bonus; a node
+//! on the way down; nodes of at most [`SMALL`] triangles keep no events: they count, on SIMD
+//! lanes, the triangles left, right and in each candidate plane (the counts and costs the sweep
+//! has there, so the same split; [`split_lanes`]) and bound straddling triangles by box
+//! intersection rather than exact clipping. A sweep per axis finds the cheapest plane; empty space gets a bonus; a node
 //! becomes a leaf when splitting costs more than intersecting all its triangles, or at the depth
 //! cap `8 + 1.3·log2 N` (pbrt); a node below the root of at most [`LEAF_MAX`] triangles is a
 //! leaf without a search.
@@ -23,6 +24,7 @@ use super::node::KdNode;
 use super::overlap::{Aabb, clip_bounds};
 use super::{COST_INTERSECT, COST_TRAVERSAL, MAX_BUILD_DEPTH, split_box, tri_verts};
 use crate::mesh::TriangleMesh;
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
 
 /// Cost factor applied when one side of a split is empty (20 % empty-space bonus).
 pub(crate) const EMPTY_FACTOR: f32 = 0.8;
@@ -31,9 +33,9 @@ pub(crate) const EMPTY_FACTOR: f32 = 0.8;
 pub(crate) const EMPTY_MIN_FRACTION: f32 = 0.02;
 /// Nodes with more triangles than this build their children in parallel.
 const PARALLEL_MIN: usize = 4096;
-/// Nodes with at most this many triangles are built by [`node_small`]: events are regenerated
-/// and sorted per node in one reused scratch buffer instead of being filtered and merged, and
-/// children's triangles live on the stack, so a small subtree makes one heap allocation.
+/// Nodes with at most this many triangles are built by [`node_small`]: splits are found by
+/// counting on lanes ([`split_lanes`]) instead of sweeping events, and children's triangles live
+/// in one reused scratch arena, so a small subtree makes no heap allocation of its own.
 pub(crate) const SMALL: usize = 48;
 
 /// Nodes below the root of at most this many triangles become leaves without a split search (a
@@ -265,6 +267,129 @@ impl AxisCost {
             c
         }
     }
+
+    /// [`AxisCost::cost`] of the planes at lanes `p` with `l` and `r` triangles (exact small
+    /// integers) each: the same operations in the same order, so each lane has the scalar bits.
+    #[inline(always)]
+    pub(crate) fn cost_lanes<V: Wide>(&self, p: V, l: V, r: V) -> V {
+        let (wl, wr) = (p.sub(V::splat(self.lo)), V::splat(self.hi).sub(p));
+        let perim = V::splat(self.perim);
+        let sl = V::splat(self.cap).add(wl.mul(perim));
+        let sr = V::splat(self.cap).add(wr.mul(perim));
+        let c = V::splat(COST_TRAVERSAL).add(V::splat(self.ki).mul(sl.mul(l).add(sr.mul(r))));
+        let (zero, min_empty) = (V::splat(0.0), V::splat(self.min_empty));
+        let bonus = V::or(
+            V::and(l.eq(zero), min_empty.le(wl)),
+            V::and(r.eq(zero), min_empty.le(wr)),
+        );
+        V::select(bonus, c.mul(V::splat(EMPTY_FACTOR)), c)
+    }
+}
+
+/// [`split_lanes`] as a kernel for [`dispatch_wide`].
+struct LaneSplit<'a> {
+    bounds: &'a [Aabb],
+    bx: &'a Aabb,
+}
+
+impl WideKernel for LaneSplit<'_> {
+    type Output = Option<Split>;
+    #[inline(always)]
+    fn run<V: Wide>(self) -> Option<Split> {
+        split_lanes::<V>(self.bounds, self.bx)
+    }
+}
+
+/// The split [`find_split`] finds for the triangles with `bounds` (at most [`SMALL`]) in box
+/// `bx`, found without events: the candidate planes are the bounds' faces, [`Wide::LANES`] at a
+/// time, and each triangle counts itself left (`lo < p`), right (`hi > p`) and planar (`lo == hi
+/// == p`) on every lane — exactly the counts the sweep has at `p` — then the lanes' costs are the
+/// sweep's ([`AxisCost::cost_lanes`]). The sweep takes the first cheapest plane by axis, then
+/// position; so does this (a tie goes to the lower axis, then the lower position), so the split
+/// is the same.
+#[inline(always)]
+fn split_lanes<V: Wide>(bounds: &[Aabb], bx: &Aabb) -> Option<Split> {
+    let n = bounds.len();
+    debug_assert!(n <= SMALL);
+    let ext = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
+    let sa = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0]);
+    if sa.is_nan() || sa <= 0.0 {
+        return None;
+    }
+    let ki = COST_INTERSECT / sa;
+    let mut best: Option<Split> = None;
+    // Candidates (padded with NaN, which is never inside the box) and one batch's costs.
+    let mut cand = [f32::NAN; 2 * SMALL + 32];
+    let mut costs = [0.0f32; 32];
+    let one = V::splat(1.0);
+    for axis in 0..3 {
+        let Some(axis_cost) = AxisCost::new(bx, ext, axis, ki) else {
+            continue;
+        };
+        // Each plane inside the box once per triangle face (a flat triangle's two faces are one;
+        // the faces of bounds clipped to the box lie on it): repeats cost time, not results.
+        let (mut planar, mut m) = (false, 0);
+        for b in bounds {
+            // `+ 0.0`: a plane at `-0.0` is the sweep's `+0.0` (its events are normalised).
+            let (lo, hi) = (b.0[axis] + 0.0, b.1[axis] + 0.0);
+            planar |= lo == hi;
+            cand[m] = lo;
+            m += (lo > axis_cost.lo && lo < axis_cost.hi) as usize;
+            cand[m] = hi;
+            m += (hi != lo && hi > axis_cost.lo && hi < axis_cost.hi) as usize;
+        }
+        cand[m..m.next_multiple_of(V::LANES)].fill(f32::NAN);
+        let (box_lo, box_hi) = (V::splat(axis_cost.lo), V::splat(axis_cost.hi));
+        for at in (0..m).step_by(V::LANES) {
+            let p = V::load(&cand[at..]);
+            let (mut l, mut r, mut pp) = (V::splat(0.0), V::splat(0.0), V::splat(0.0));
+            if planar {
+                for b in bounds {
+                    let (lo, hi) = (V::splat(b.0[axis]), V::splat(b.1[axis]));
+                    l = l.add_where(lo.lt(p), one);
+                    r = r.add_where(hi.gt(p), one);
+                    pp = pp.add_where(V::and(lo.eq(p), hi.eq(p)), one);
+                }
+            } else {
+                for b in bounds {
+                    l = l.add_where(V::splat(b.0[axis]).lt(p), one);
+                    r = r.add_where(V::splat(b.1[axis]).gt(p), one);
+                }
+            }
+            let inside = V::and(p.gt(box_lo), p.lt(box_hi));
+            let (c, left) = if planar {
+                let cl = axis_cost.cost_lanes(p, l.add(pp), r);
+                let cr = axis_cost.cost_lanes(p, l, r.add(pp));
+                let left = cl.le(cr);
+                (V::select(left, cl, cr), V::bits(left))
+            } else {
+                (axis_cost.cost_lanes(p, l, r), u32::MAX)
+            };
+            let bound = V::splat(best.map_or(f32::INFINITY, |b| b.cost));
+            let mut hits = V::bits(V::and(inside, c.le(bound)));
+            if hits == 0 {
+                continue;
+            }
+            c.store(&mut costs);
+            while hits != 0 {
+                let k = hits.trailing_zeros() as usize;
+                hits &= hits - 1;
+                let (cost, pos) = (costs[k], cand[at + k]);
+                let better = best.is_none_or(|b| {
+                    cost < b.cost || (cost == b.cost && b.axis == axis && pos < b.pos)
+                });
+                if better {
+                    best = Some(Split {
+                        cost,
+                        axis,
+                        pos,
+                        planar_left: left >> k & 1 != 0,
+                    });
+                }
+            }
+        }
+    }
+    best
 }
 
 fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
@@ -420,13 +545,12 @@ fn clip_to_box(old: &Aabb, cb: &Aabb) -> Aabb {
     b
 }
 
-/// Scratch arrays of one small subtree ([`node_small`]): the triangles and events of the nodes on
-/// the current path, each node's after its parent's (pushed before descending, truncated after).
+/// Scratch arrays of one small subtree ([`node_small`]): the triangles of the nodes on the
+/// current path, each node's after its parent's (pushed before descending, truncated after).
 #[derive(Default)]
 pub(crate) struct SmallArena {
     ids: Vec<u32>,
     bounds: Vec<Aabb>,
-    events: Vec<u64>,
 }
 
 impl SmallArena {
@@ -435,19 +559,15 @@ impl SmallArena {
         SmallArena {
             ids: Vec::with_capacity(8 * SMALL),
             bounds: Vec::with_capacity(8 * SMALL),
-            events: Vec::with_capacity(48 * SMALL),
         }
     }
 }
 
 /// Builds the subtree over at most [`SMALL`] triangles `ids` with (clipped) `bounds` in box `bx`:
-/// sorts their events once, then hands each child its parent's events filtered in order, so no
-/// node below sorts. Straddling triangles' bounds are intersected with the child box rather
+/// each node's split is found by counting on lanes ([`split_lanes`], the split the sweep finds),
+/// so no node sorts events. Straddling triangles' bounds are intersected with the child box rather
 /// than clipped exactly (measured on Sibenik, exact clipping in these small nodes costs a third
-/// of the build time for a 3 % lower SAH cost); that moves only their bound on the split axis,
-/// to the plane, which is the last position of the left child's events and the first of the
-/// right child's, so the filtered lists stay sorted by position (all the sweep needs).
-#[allow(clippy::too_many_arguments)]
+/// of the build time for a 3 % lower SAH cost).
 pub(crate) fn node_small(
     bx: Aabb,
     ids: &[u32],
@@ -457,44 +577,33 @@ pub(crate) fn node_small(
     out: &mut Flat,
     arena: &mut SmallArena,
 ) {
-    let n = ids.len();
-    debug_assert!(n <= SMALL && bounds.len() == n);
+    debug_assert!(ids.len() <= SMALL && bounds.len() == ids.len());
     arena.ids.clear();
     arena.bounds.clear();
-    arena.events.clear();
     arena.ids.extend_from_slice(ids);
     arena.bounds.extend_from_slice(bounds);
-    let mut ranges = [(0usize, 0usize); 3];
-    for (axis, range) in ranges.iter_mut().enumerate() {
-        let start = arena.events.len();
-        for (i, b) in bounds.iter().enumerate() {
-            push_events(&mut arena.events, b, axis, i as u32);
-        }
-        arena.events[start..].sort_unstable();
-        *range = (start, arena.events.len());
-    }
-    small(bx, 0, n, ranges, depth, max_depth, out, arena);
+    let level = Level::current();
+    small(bx, 0, ids.len(), depth, max_depth, level, out, arena);
 }
 
-/// One node of a small subtree: its triangles are `arena.ids/bounds[first..first + n]`, its
-/// sorted events per axis `arena.events[ranges[axis]]` (indices local to the node).
+/// One node of a small subtree: its triangles are `arena.ids/bounds[first..first + n]`; splits
+/// are searched on lanes of `level`.
 #[allow(clippy::too_many_arguments)]
 fn small(
     bx: Aabb,
     first: usize,
     n: usize,
-    ranges: [(usize, usize); 3],
     depth: usize,
     max_depth: usize,
+    level: Level,
     out: &mut Flat,
     arena: &mut SmallArena,
 ) {
     let split = if n == 0 || (depth > 0 && n <= LEAF_MAX) || depth >= max_depth {
         None
     } else {
-        let ev = &arena.events;
-        let [a, b, c] = ranges;
-        find_split(n, [&ev[a.0..a.1], &ev[b.0..b.1], &ev[c.0..c.1]], &bx)
+        let bounds = &arena.bounds[first..first + n];
+        dispatch_wide(level, LaneSplit { bounds, bx: &bx })
             .filter(|s| s.cost < COST_INTERSECT * n as f32)
     };
     let Some(split) = split else {
@@ -503,108 +612,45 @@ fn small(
     };
     let (axis, s) = (split.axis, split.pos);
     let (lb, rb) = split_box(&bx, axis, s);
-    // Per triangle: its side in bits 0-1 and its index in the left and right child in bits
-    // 8-15 and 16-23 (local indices fit in 6 bits), so filtering an event reads one word.
-    let mut info = [0u32; SMALL];
-    let (ids_mark, ev_mark) = (arena.ids.len(), arena.events.len());
+    // Classified once; the left child's triangles, then the right child's, after `mark`.
+    let mark = arena.ids.len();
+    let mut sides = [0u8; SMALL];
     let mut counts = [0usize; 2];
-    for (c, cb) in [(0usize, &lb), (1, &rb)] {
-        let me = 1u8 << c;
-        for (i, x) in info[..n].iter_mut().enumerate() {
-            let b = arena.bounds[first + i];
-            let sd = if c == 0 {
-                let sd = classify(&b, &split);
-                *x = sd as u32;
-                sd
-            } else {
-                *x as u8 & 3
-            };
-            if sd & me != 0 {
-                *x |= (counts[c] as u32) << (8 + 8 * c);
-                counts[c] += 1;
-                let id = arena.ids[first + i];
-                arena.ids.push(id);
-                arena
-                    .bounds
-                    .push(if sd == 3 { clip_to_box(&b, cb) } else { b });
-            }
-        }
+    for (sd, b) in sides.iter_mut().zip(&arena.bounds[first..first + n]) {
+        *sd = classify(b, &split);
+        counts[0] += (*sd & 1) as usize;
+        counts[1] += (*sd >> 1) as usize;
     }
-    let straddlers = info[..n].iter().filter(|&&x| x & 3 == 3).count();
-    let at = |e: u64, l: u32| (e & !0x3fff_ffff) | l as u64;
-    let mut child_ranges = [[(0usize, 0usize); 3]; 2];
-    for (a, range) in ranges.iter().enumerate() {
-        // Both children's lists in one pass: room for every event and the straddlers' re-made
-        // ones on each side; each event is written to both, and each write position advances
-        // only for kept ones (without branching on the side, which is unpredictable).
-        let len = range.1 - range.0;
-        let split_axis = a == axis;
-        let base_l = arena.events.len();
-        let base_r = base_l + len + straddlers;
-        arena.events.resize(base_r + len + straddlers, 0);
-        let (src, dst) = arena.events.split_at_mut(base_l);
-        let src = &src[range.0..range.1];
-        let (mut kl, mut kr) = (0usize, len + straddlers);
-        if split_axis {
-            // Straddlers start at the plane, before every other event of the right child.
-            for &x in &info[..n] {
-                if x & 3 == 3 {
-                    dst[kr] = event(s, START, (x >> 16) & 0xff);
-                    kr += 1;
-                }
+    let end = mark + counts[0] + counts[1];
+    arena.ids.resize(end, 0);
+    arena.bounds.resize(end, ([0.0; 3], [0.0; 3]));
+    let mut at = [mark, mark + counts[0]];
+    for (k, &sd) in sides[..n].iter().enumerate() {
+        let (id, b) = (arena.ids[first + k], arena.bounds[first + k]);
+        for (c, cb) in [(0usize, &lb), (1, &rb)] {
+            if sd >> c & 1 != 0 {
+                arena.ids[at[c]] = id;
+                arena.bounds[at[c]] = if sd == 3 { clip_to_box(&b, cb) } else { b };
+                at[c] += 1;
             }
         }
-        for &e in src {
-            let x = info[(e & 0x3fff_ffff) as usize];
-            let kind = (e >> 30) & 3;
-            let straddles = split_axis & (x & 3 == 3);
-            // A straddler's end goes from the left child and its start from the right child:
-            // both are re-made at the plane.
-            let keep_l = (x & 1 != 0) & !(straddles & (kind == END));
-            let keep_r = (x & 2 != 0) & !(straddles & (kind == START));
-            dst[kl] = at(e, (x >> 8) & 0xff);
-            kl += keep_l as usize;
-            dst[kr] = at(e, (x >> 16) & 0xff);
-            kr += keep_r as usize;
-        }
-        if split_axis {
-            // Straddlers end at the plane, after every other event of the left child.
-            for &x in &info[..n] {
-                if x & 3 == 3 {
-                    dst[kl] = event(s, END, (x >> 8) & 0xff);
-                    kl += 1;
-                }
-            }
-        }
-        child_ranges[0][a] = (base_l, base_l + kl);
-        child_ranges[1][a] = (base_r, base_l + kr);
     }
     let here = out.nodes.len();
     out.nodes.push(KdNode::inner(axis, s, 0));
-    small(
-        lb,
-        ids_mark,
-        counts[0],
-        child_ranges[0],
-        depth + 1,
-        max_depth,
-        out,
-        arena,
-    );
+    small(lb, mark, counts[0], depth + 1, max_depth, level, out, arena);
     out.nodes[here] = KdNode::inner(axis, s, out.nodes.len() as u32);
     small(
         rb,
-        ids_mark + counts[0],
+        mark + counts[0],
         counts[1],
-        child_ranges[1],
         depth + 1,
         max_depth,
+        level,
         out,
         arena,
     );
-    arena.ids.truncate(ids_mark);
-    arena.bounds.truncate(ids_mark);
-    arena.events.truncate(ev_mark);
+    arena.ids.truncate(mark);
+    arena.bounds.truncate(mark);
 }
 
 /// Builds the work set of one child: triangles on side `me` only keep their events (filtered,
@@ -672,9 +718,14 @@ fn child(mesh: &TriangleMesh, w: &Work, side: &[u8], me: u8, cb: &Aabb) -> Work 
 
 #[cfg(test)]
 mod tests {
-    use super::{ord, unord};
+    use super::{
+        AxisCost, COST_INTERSECT, LaneSplit, SMALL, Split, find_split, norm, ord, push_events,
+        unord,
+    };
+    use crate::accel::kdtree::overlap::Aabb;
     use crate::accel::kdtree::{BuildMethod, KdTree};
     use crate::mesh::TriangleMesh;
+    use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
 
     /// Many small triangles in one corner of a large, otherwise empty box.
     fn corner_mesh() -> TriangleMesh {
@@ -772,6 +823,146 @@ mod tests {
         tree.validate(&mesh).expect("valid");
         let s = tree.stats(&mesh);
         assert!(s.references <= mesh.len() + mesh.len() / 4, "{s}");
+    }
+
+    /// A small generator of test values (xorshift).
+    struct Rng(u64);
+
+    impl Rng {
+        fn next(&mut self) -> u64 {
+            self.0 ^= self.0 << 13;
+            self.0 ^= self.0 >> 7;
+            self.0 ^= self.0 << 17;
+            self.0
+        }
+
+        /// One of `steps` grid values in `[lo, lo + steps / 4)`: coarse, so faces coincide and
+        /// costs tie.
+        fn grid(&mut self, lo: f32, steps: u64) -> f32 {
+            lo + (self.next() % steps) as f32 * 0.25
+        }
+    }
+
+    /// Bounds of `n` triangles in the box `[-1, 3]³`, many flat (planar events), many sharing
+    /// faces, some touching the box faces or lying in them; one of them (`-0.0`) on a grid value.
+    fn small_node(rng: &mut Rng, n: usize) -> (Aabb, Vec<Aabb>) {
+        let bx = ([-1.0; 3], [3.0; 3]);
+        let bounds = (0..n)
+            .map(|_| {
+                let mut b = ([0.0; 3], [0.0; 3]);
+                for k in 0..3 {
+                    let (a, c) = (rng.grid(-1.0, 17), rng.grid(-1.0, 17));
+                    let flat = rng.next().is_multiple_of(4);
+                    b.0[k] = a.min(c);
+                    b.1[k] = if flat { b.0[k] } else { a.max(c) };
+                    if b.0[k] == 0.0 && rng.next().is_multiple_of(2) {
+                        b.0[k] = -0.0;
+                    }
+                }
+                b
+            })
+            .collect();
+        (bx, bounds)
+    }
+
+    #[test]
+    fn counting_planes_finds_the_split_the_event_sweep_finds_on_every_width() {
+        let mut rng = Rng(0x9e37_79b9_7f4a_7c15);
+        let mut planar_right = 0;
+        for round in 0..3000 {
+            let n = 1 + round % SMALL;
+            let (bx, bounds) = small_node(&mut rng, n);
+            let events: [Vec<u64>; 3] = std::array::from_fn(|axis| {
+                let mut ev = Vec::new();
+                for (i, b) in bounds.iter().enumerate() {
+                    push_events(&mut ev, &norm(*b), axis, i as u32);
+                }
+                ev.sort_unstable();
+                ev
+            });
+            let [e0, e1, e2] = &events;
+            let want = find_split(n, [e0, e1, e2], &bx);
+            planar_right += want.is_some_and(|s| !s.planar_left) as usize;
+            for level in Level::supported() {
+                let got = dispatch_wide(
+                    level,
+                    LaneSplit {
+                        bounds: &bounds,
+                        bx: &bx,
+                    },
+                );
+                let key = |s: Option<Split>| {
+                    s.map(|s| (s.cost.to_bits(), s.axis, s.pos.to_bits(), s.planar_left))
+                };
+                assert_eq!(key(got), key(want), "{level:?}, round {round}: {bounds:?}");
+            }
+        }
+        // The planar triangles' side was decided both ways.
+        assert!(planar_right > 10, "{planar_right}");
+    }
+
+    /// [`AxisCost::cost_lanes`] of the planes `p` with counts `l`, `r` (one batch of lanes).
+    struct Costs<'a> {
+        cost: AxisCost,
+        p: &'a [f32],
+        l: &'a [f32],
+        r: &'a [f32],
+    }
+
+    impl WideKernel for Costs<'_> {
+        type Output = Vec<f32>;
+        #[inline(always)]
+        fn run<V: Wide>(self) -> Vec<f32> {
+            let mut out = vec![0.0; V::LANES];
+            let (p, l, r) = (V::load(self.p), V::load(self.l), V::load(self.r));
+            self.cost.cost_lanes(p, l, r).store(&mut out);
+            out
+        }
+    }
+
+    #[test]
+    fn plane_costs_on_lanes_have_the_scalar_bits() {
+        let mut rng = Rng(12345);
+        let mut bonuses = 0;
+        for _ in 0..500 {
+            let lo = rng.grid(-4.0, 9);
+            let hi = lo + 0.25 + rng.grid(0.0, 40);
+            let bx = ([lo, -1.0, 0.5], [hi, 2.0 + rng.grid(0.0, 5), 0.75]);
+            let ext = [0, 1, 2].map(|k| bx.1[k] - bx.0[k]);
+            let sa = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0]);
+            let cost = AxisCost::new(&bx, ext, 0, COST_INTERSECT / sa).expect("not flat");
+            // Planes all over the box, near its faces too (inside the empty-space minimum).
+            let p: Vec<f32> = (0..16)
+                .map(|k| match k % 4 {
+                    0 => lo + (hi - lo) * 0.01,
+                    1 => hi - (hi - lo) * 0.01,
+                    _ => lo + (hi - lo) * (rng.next() % 1000) as f32 / 1000.0,
+                })
+                .collect();
+            let l: Vec<f32> = (0..16).map(|_| (rng.next() % 5) as f32).collect();
+            let r: Vec<f32> = (0..16).map(|_| (rng.next() % 5) as f32).collect();
+            for level in Level::supported() {
+                let got = dispatch_wide(
+                    level,
+                    Costs {
+                        cost,
+                        p: &p,
+                        l: &l,
+                        r: &r,
+                    },
+                );
+                for (k, g) in got.iter().enumerate() {
+                    let want = cost.cost(p[k], l[k] as usize, r[k] as usize);
+                    assert_eq!(g.to_bits(), want.to_bits(), "{level:?} lane {k}");
+                    let plain = cost.cost(p[k], 1, 1);
+                    bonuses += (l[k] == 0.0 || r[k] == 0.0) as usize * (want < plain) as usize;
+                }
+            }
+        }
+        assert!(
+            bonuses > 100,
+            "the empty-space bonus was taken {bonuses} times"
+        );
     }
 
     #[test]

@@ -656,6 +656,7 @@ fn build_tree(
     let start = Instant::now();
     let store = cache.cache();
     let (bytes, sources) = wavefront::world::read_mesh_file(mesh, store.is_some())?;
+    wavefront::world::check_mesh_bytes(mesh, &bytes)?;
     let obj = wavefront::mesh::obj_fast::read_bytes(mesh, &bytes)?;
     let load = start.elapsed().as_secs_f64();
     // The entry a render's cache miss builds: the tree in the frame centred on the mesh.
