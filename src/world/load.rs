@@ -194,7 +194,7 @@ pub fn read_mesh_file(
 }
 
 /// Checks the first MiB of the mesh file `path` read as `bytes` ([`read_mesh_file`]) as
-/// [`crate::mesh::check_file`] checks it: a file bad beyond the first 64 KiB is rejected before it
+/// `mesh::check_file` checks it: a file bad beyond the first 64 KiB is rejected before it
 /// is parsed, with the error the check names (file, line) rather than the parser's.
 pub fn check_mesh_bytes(path: &std::path::Path, bytes: &[u8]) -> Result<(), MeshError> {
     crate::mesh::check_bytes(path, bytes, Some(OBJ_PREFIX))
