@@ -8,7 +8,7 @@ use glam::Vec3;
 
 use crate::queue::compact::{compact, count_chunks};
 use crate::queue::{HitQueue, MIN_CHUNK, RayItem, RayQueue, Resize, SampleSlot};
-use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide, dot3};
 use crate::world::World;
 
 crate::column_set! {
@@ -181,7 +181,7 @@ impl WideKernel for ReflectKernel<'_> {
             let s = V::load3(bytemuck::cast_slice(&self.shading[i..i + n]));
             let w = V::load3(bytemuck::cast_slice(&self.weight[i..i + n]));
             // `d − 2(d·n)n` and `weight·α` as `reflection_ray` computes them.
-            let dot = d[0].mul(s[0]).add(d[1].mul(s[1])).add(d[2].mul(s[2]));
+            let dot = dot3(d, s);
             let k = V::splat(2.0).mul(dot);
             let r = [
                 d[0].sub(k.mul(s[0])),

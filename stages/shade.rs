@@ -28,7 +28,7 @@ use crate::queue::compact::compact;
 use crate::queue::pass::{MAX_SHADOW_ROWS, ShadowPass};
 use crate::queue::{HitQueue, MIN_CHUNK, PrimId, Resize, SampleSlot, Samples, ShadowQueue};
 use crate::scene::{Material, ShadeSettings};
-use crate::simd::{Level, Wide, WideKernel, dispatch_wide};
+use crate::simd::{Level, Wide, WideKernel, dispatch_wide, dot3};
 use crate::world::frame::{Emission, Light};
 use crate::world::{Surface, SurfaceOut, World};
 
@@ -433,11 +433,7 @@ impl<V: Wide> HitLanes<V> {
             lp[1].sub(self.p[1]),
             lp[2].sub(self.p[2]),
         ];
-        let dist = to[0]
-            .mul(to[0])
-            .add(to[1].mul(to[1]))
-            .add(to[2].mul(to[2]))
-            .sqrt();
+        let dist = dot3(to, to).sqrt();
         let valid = V::and(dist.gt(V::splat(0.0)), dist.lt(V::splat(f32::INFINITY)));
         let u = [to[0].div(dist), to[1].div(dist), to[2].div(dist)];
         (u, dist, valid)
@@ -451,20 +447,16 @@ impl<V: Wide> HitLanes<V> {
         let zero = V::splat(0.0);
         let (u, dist, valid) = self.toward(light);
         let n = self.n;
-        let n_dot_l = n[0].mul(u[0]).add(n[1].mul(u[1])).add(n[2].mul(u[2]));
+        let n_dot_l = dot3(n, u);
         // The half vector with v = −d (`u + −d` is `u − d`).
         let h = [
             u[0].sub(self.d[0]),
             u[1].sub(self.d[1]),
             u[2].sub(self.d[2]),
         ];
-        let len = h[0]
-            .mul(h[0])
-            .add(h[1].mul(h[1]))
-            .add(h[2].mul(h[2]))
-            .sqrt();
+        let len = dot3(h, h).sqrt();
         let hn = [h[0].div(len), h[1].div(len), h[2].div(len)];
-        let ndh = max0(n[0].mul(hn[0]).add(n[1].mul(hn[1])).add(n[2].mul(hn[2])));
+        let ndh = max0(dot3(n, hn));
         let n_dot_h = V::select(len.gt(zero), ndh, zero);
         let power = specular_power(n_dot_h, &self.exponent);
         let diffuse = max0(n_dot_l);
@@ -604,11 +596,7 @@ fn shadow_rays_wide<V: Wide>(spawn: [V; 3], light: &Light) -> ([V; 3], V) {
         lp[1].sub(spawn[1]),
         lp[2].sub(spawn[2]),
     ];
-    let dist = to[0]
-        .mul(to[0])
-        .add(to[1].mul(to[1]))
-        .add(to[2].mul(to[2]))
-        .sqrt();
+    let dist = dot3(to, to).sqrt();
     let u = [to[0].div(dist), to[1].div(dist), to[2].div(dist)];
     let along = u[0]
         .abs()

@@ -21,7 +21,7 @@ mod wide;
 mod x4;
 
 pub(crate) use wide::Pair;
-pub(crate) use wide::{Wide, WideKernel, dispatch_wide};
+pub(crate) use wide::{Wide, WideKernel, dispatch_wide, dot3};
 pub(crate) use x4::{F32x4, max_ps, min_ps};
 
 use std::sync::OnceLock;
@@ -196,29 +196,30 @@ mod shuffle3 {
     const TY: [i32; 8] = [5, 0, 3, 6, 1, 4, 7, 2];
     const TZ: [i32; 8] = [2, 5, 0, 3, 6, 1, 4, 7];
 
+    /// `v`'s lanes in the order `idx`.
+    #[inline]
+    #[target_feature(enable = "avx2")]
+    fn perm(v: __m256, idx: [i32; 8]) -> __m256 {
+        let i = _mm256_setr_epi32(
+            idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7],
+        );
+        _mm256_permutevar8x32_ps(v, i)
+    }
+
     #[inline]
     #[target_feature(enable = "avx2")]
     pub(super) fn deinterleave(rows: &[f32; 24]) -> [[f32; 8]; 3] {
         let p = rows.as_ptr();
         // SAFETY: `rows` holds 24 floats: three unaligned 8-float loads at 0, 8 and 16.
-        let (a, b, c) = unsafe {
-            (
+        let abc = unsafe {
+            [
                 _mm256_loadu_ps(p),
                 _mm256_loadu_ps(p.add(8)),
                 _mm256_loadu_ps(p.add(16)),
-            )
+            ]
         };
-        let perm = |v: __m256, idx: [i32; 8]| {
-            let i = _mm256_setr_epi32(
-                idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7],
-            );
-            _mm256_permutevar8x32_ps(v, i)
-        };
-        let x = perm(_mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(a, b), c), X);
-        let y = perm(_mm256_blend_ps::<0x49>(_mm256_blend_ps::<0x24>(a, b), c), Y);
-        let z = perm(_mm256_blend_ps::<0x92>(_mm256_blend_ps::<0x49>(a, b), c), Z);
         let mut out = [[0.0f32; 8]; 3];
-        for (o, v) in out.iter_mut().zip([x, y, z]) {
+        for (o, v) in out.iter_mut().zip(deinterleave_regs(abc)) {
             // SAFETY: `o` holds 8 floats (unaligned store).
             unsafe { _mm256_storeu_ps(o.as_mut_ptr(), v) };
         }
@@ -229,12 +230,6 @@ mod shuffle3 {
     #[inline]
     #[target_feature(enable = "avx2")]
     pub(super) fn deinterleave_regs([a, b, c]: [__m256; 3]) -> [__m256; 3] {
-        let perm = |v: __m256, idx: [i32; 8]| {
-            let i = _mm256_setr_epi32(
-                idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7],
-            );
-            _mm256_permutevar8x32_ps(v, i)
-        };
         let x = perm(_mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(a, b), c), X);
         let y = perm(_mm256_blend_ps::<0x49>(_mm256_blend_ps::<0x24>(a, b), c), Y);
         let z = perm(_mm256_blend_ps::<0x92>(_mm256_blend_ps::<0x49>(a, b), c), Z);
@@ -245,12 +240,6 @@ mod shuffle3 {
     #[inline]
     #[target_feature(enable = "avx2")]
     pub(super) fn interleave_regs([x, y, z]: [__m256; 3]) -> [__m256; 3] {
-        let perm = |v: __m256, idx: [i32; 8]| {
-            let i = _mm256_setr_epi32(
-                idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7],
-            );
-            _mm256_permutevar8x32_ps(v, i)
-        };
         let (tx, ty, tz) = (perm(x, TX), perm(y, TY), perm(z, TZ));
         let a = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(tx, ty), tz);
         let b = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(tz, tx), ty);
@@ -262,23 +251,14 @@ mod shuffle3 {
     #[target_feature(enable = "avx2")]
     pub(super) fn interleave(lanes: &[[f32; 8]; 3], rows: &mut [f32; 24]) {
         // SAFETY: each component holds 8 floats (unaligned loads).
-        let (x, y, z) = unsafe {
-            (
+        let xyz = unsafe {
+            [
                 _mm256_loadu_ps(lanes[0].as_ptr()),
                 _mm256_loadu_ps(lanes[1].as_ptr()),
                 _mm256_loadu_ps(lanes[2].as_ptr()),
-            )
+            ]
         };
-        let perm = |v: __m256, idx: [i32; 8]| {
-            let i = _mm256_setr_epi32(
-                idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7],
-            );
-            _mm256_permutevar8x32_ps(v, i)
-        };
-        let (tx, ty, tz) = (perm(x, TX), perm(y, TY), perm(z, TZ));
-        let a = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(tx, ty), tz);
-        let b = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(tz, tx), ty);
-        let c = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(ty, tz), tx);
+        let [a, b, c] = interleave_regs(xyz);
         let p = rows.as_mut_ptr();
         // SAFETY: `rows` holds 24 floats: three unaligned 8-float stores at 0, 8 and 16.
         unsafe {

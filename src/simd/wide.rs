@@ -103,6 +103,13 @@ pub(crate) trait WideKernel {
     fn run<V: Wide>(self) -> Self::Output;
 }
 
+/// `a · b` on lanes, as glam's `Vec3::dot` evaluates it (`(x·x′ + y·y′) + z·z′`, so each lane
+/// has the scalar dot's bits).
+#[inline(always)]
+pub(crate) fn dot3<V: Wide>(a: [V; 3], b: [V; 3]) -> V {
+    a[0].mul(b[0]).add(a[1].mul(b[1])).add(a[2].mul(b[2]))
+}
+
 /// Runs `kernel` with 16 AVX-512 lanes, 8 AVX2 lanes or 8 portable lanes: the best `level` (or
 /// the best supported level below it) allows.
 #[inline]

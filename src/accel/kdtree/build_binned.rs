@@ -24,7 +24,7 @@ use std::time::Instant;
 
 use rayon::prelude::*;
 
-use super::build_sah::{self, AxisCost, Flat, Split, classify, clip, tri_bounds};
+use super::build_sah::{self, AxisCost, Flat, Split, box_costs, classify, clip, tri_bounds};
 use super::node::KdNode;
 use super::overlap::Aabb;
 use super::{BuildPhases, COST_INTERSECT, split_box};
@@ -183,12 +183,7 @@ impl Grid {
 /// ([`Grid::new`] of `geo`): bin boundaries inside the geometry, and its faces (cutting off the
 /// empty space beyond them).
 fn find_split(bx: &Aabb, geo: &Aabb, n: usize, bins: &Bins) -> Option<Split> {
-    let ext = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
-    let sa = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0]);
-    if sa.is_nan() || sa <= 0.0 {
-        return None;
-    }
-    let ki = COST_INTERSECT / sa;
+    let (ext, ki) = box_costs(bx)?;
     let mut best: Option<Split> = None;
     let mut consider = |cost: f32, axis: usize, pos: f32, planar_left: bool| {
         if best.is_none_or(|b| cost < b.cost) {

@@ -311,12 +311,7 @@ impl WideKernel for LaneSplit<'_> {
 fn split_lanes<V: Wide>(bounds: &[Aabb], bx: &Aabb) -> Option<Split> {
     let n = bounds.len();
     debug_assert!(n <= SMALL);
-    let ext = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
-    let sa = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0]);
-    if sa.is_nan() || sa <= 0.0 {
-        return None;
-    }
-    let ki = COST_INTERSECT / sa;
+    let (ext, ki) = box_costs(bx)?;
     let mut best: Option<Split> = None;
     // Candidates (padded with NaN, which is never inside the box) and one batch's costs.
     let mut cand = [f32::NAN; 2 * SMALL + 32];
@@ -392,13 +387,19 @@ fn split_lanes<V: Wide>(bounds: &[Aabb], bx: &Aabb) -> Option<Split> {
     best
 }
 
-fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
+/// Box `bx`'s extent and `COST_INTERSECT` over its surface area, the two things every split
+/// search's costs start from ([`AxisCost::new`]); `None` for an empty, flat or NaN box.
+pub(crate) fn box_costs(bx: &Aabb) -> Option<([f32; 3], f32)> {
     let ext = [bx.1[0] - bx.0[0], bx.1[1] - bx.0[1], bx.1[2] - bx.0[2]];
     let sa = 2.0 * (ext[0] * ext[1] + ext[1] * ext[2] + ext[2] * ext[0]);
     if sa.is_nan() || sa <= 0.0 {
         return None;
     }
-    let ki = COST_INTERSECT / sa;
+    Some((ext, COST_INTERSECT / sa))
+}
+
+fn find_split(n: usize, events: [&[u64]; 3], bx: &Aabb) -> Option<Split> {
+    let (ext, ki) = box_costs(bx)?;
     let mut best: Option<Split> = None;
     let mut best_cost = f32::INFINITY;
     for (axis, ev) in events.into_iter().enumerate() {
